@@ -1,0 +1,69 @@
+"""IKDP checkpoints: written atomically, read without ever running code from the file.
+
+A checkpoint is a plain dict of tensors and plain values (nanoGPT style):
+format tag, version, the model config (arm, representation, schedule, denoiser),
+the prior, the training config, the metrics measured at save, and the weights.
+It loads with `torch.load(..., weights_only=True)`, which refuses pickled code.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import tempfile
+import zipfile
+from pathlib import Path
+
+import torch
+
+FORMAT = "ikdp-checkpoint"
+VERSION = 1
+REQUIRED_KEYS = ("format", "version", "model", "prior", "train", "metrics", "state_dict")
+
+
+class CheckpointError(ValueError):
+    """A file that is not a loadable IKDP checkpoint; the message is one line naming the file and why."""
+
+
+def save_checkpoint(path: str | Path, payload: dict) -> None:
+    """Write `payload` (without format/version, which are added) to `path` atomically: temp file, fsync, rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"format": FORMAT, "version": VERSION, **payload}
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(handle, "wb") as file:
+            torch.save(payload, file)
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(temporary, path)  # a reader sees the old file or the new one, never half of one
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def read_checkpoint(path: str | Path) -> dict:
+    """Read and validate a checkpoint; raise CheckpointError with a one-line reason otherwise."""
+    path = Path(path)
+    if not path.exists():
+        raise CheckpointError(f"{path}: no such file")
+    if not path.is_file():
+        raise CheckpointError(f"{path}: not a file")
+    if not zipfile.is_zipfile(path):
+        raise CheckpointError(f"{path}: not an IKDP checkpoint (not a torch zip archive; truncated or another format)")
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else "unsafe content"
+        raise CheckpointError(f"{path}: refused, it holds pickled objects that are not plain data ({first_line})") from None
+    except (RuntimeError, EOFError, OSError, zipfile.BadZipFile, KeyError) as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise CheckpointError(f"{path}: unreadable or truncated checkpoint ({first_line})") from None
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise CheckpointError(f"{path}: not an IKDP checkpoint (no '{FORMAT}' format tag)")
+    if payload.get("version") != VERSION:
+        raise CheckpointError(f"{path}: checkpoint version {payload.get('version')!r}, this ikdp reads version {VERSION}")
+    missing = [key for key in REQUIRED_KEYS if key not in payload]
+    if missing:
+        raise CheckpointError(f"{path}: incomplete checkpoint, missing {', '.join(missing)}")
+    return payload

@@ -1,0 +1,19 @@
+"""The denoiser's hyperparameters, saved in every checkpoint to rebuild it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+DENOISER_KINDS = ("film", "paper")
+
+
+@dataclass(frozen=True)
+class DenoiserConfig:
+    kind: str = "film"  # film: our kinematics-aware FiLM MLP; paper: the paper's transformer
+    hidden: int = 128  # film: width of the residual MLP
+    blocks: int = 3  # film: residual blocks
+    time_dim: int = 64  # size of the sinusoidal timestep embedding
+    model_dim: int = 64  # paper: transformer token width
+    heads: int = 4  # paper: attention heads
+    layers: int = 2  # paper: layers in the encoder and in the decoder
+    mlp_hidden: int = 256  # paper: width of the MLP between encoder and decoder

@@ -1,0 +1,137 @@
+"""The DDPM noise schedule (Ho et al. 2020) and its two reverse steps.
+
+The schedule is not a network: it owns T, the betas and every constant derived
+from them, computed in float64 and kept as float32. Timesteps are 0-based
+indices: index t here is the paper's step t+1, so t = T-1 is pure noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+SCHEDULE_KINDS = ("linear", "cosine")
+PREDICTION_KINDS = ("epsilon", "sample")
+
+
+@dataclass(frozen=True)
+class ScheduleConfig:
+    timesteps: int = 80  # T, the number of diffusion steps (the paper tries 40, 80, 100)
+    kind: str = "linear"  # beta schedule: linear (DDPM) or cosine (Nichol & Dhariwal)
+    beta_start: float = 1e-4  # linear betas at T=1000; scaled by 1000/T for other T
+    beta_end: float = 0.02
+
+
+def make_betas(config: ScheduleConfig) -> torch.Tensor:
+    """Betas in float64, shape (T,)."""
+    steps = config.timesteps
+    if config.kind == "linear":
+        scale = 1000 / steps  # keeps the total noise of DDPM's T=1000 schedule at any T
+        return torch.linspace(scale * config.beta_start, scale * config.beta_end, steps, dtype=torch.float64).clamp(max=0.999)
+    s = 0.008
+    x = torch.linspace(0, steps, steps + 1, dtype=torch.float64)
+    alphas_cumprod = torch.cos(((x / steps) + s) / (1 + s) * math.pi / 2) ** 2
+    alphas_cumprod = alphas_cumprod / alphas_cumprod[0]
+    return (1 - alphas_cumprod[1:] / alphas_cumprod[:-1]).clamp(max=0.999)
+
+
+class DiffusionSchedule:
+    def __init__(self, config: ScheduleConfig = ScheduleConfig()):
+        if config.kind not in SCHEDULE_KINDS:
+            raise ValueError(f"schedule kind: expected one of {SCHEDULE_KINDS}, got {config.kind!r}")
+        if config.timesteps < 1:
+            raise ValueError(f"timesteps: expected a positive integer, got {config.timesteps}")
+        self.config = config
+        self.num_timesteps = config.timesteps
+        betas = make_betas(config)
+        alphas = 1 - betas
+        alphas_cumprod = torch.cumprod(alphas, dim=0)
+        alphas_cumprod_prev = torch.nn.functional.pad(alphas_cumprod[:-1], (1, 0), value=1.0)
+        # q(x_{t-1} | x_t, x_0) = N(coef_clean * x_0 + coef_noisy * x_t, posterior_variance)  (Ho eq. 6-7)
+        posterior_variance = betas * (1 - alphas_cumprod_prev) / (1 - alphas_cumprod)
+        as32 = lambda value: value.to(torch.float32)  # noqa: E731
+        self.betas = as32(betas)
+        self.alphas_cumprod = as32(alphas_cumprod)
+        self.alphas_cumprod_prev = as32(alphas_cumprod_prev)
+        self.sqrt_alphas_cumprod = as32(alphas_cumprod.sqrt())
+        self.sqrt_one_minus_alphas_cumprod = as32((1 - alphas_cumprod).sqrt())
+        self.posterior_variance = as32(posterior_variance)
+        self.posterior_mean_coef_clean = as32(betas * alphas_cumprod_prev.sqrt() / (1 - alphas_cumprod))
+        self.posterior_mean_coef_noisy = as32((1 - alphas_cumprod_prev) * alphas.sqrt() / (1 - alphas_cumprod))
+        # Python floats for the sampling loop: indexing a tensor per step costs more than the step's arithmetic.
+        self._floats = {
+            name: getattr(self, name).tolist()
+            for name in (
+                "alphas_cumprod",
+                "sqrt_alphas_cumprod",
+                "sqrt_one_minus_alphas_cumprod",
+                "posterior_variance",
+                "posterior_mean_coef_clean",
+                "posterior_mean_coef_noisy",
+            )
+        }
+
+    def _check_timestep(self, t: int) -> None:
+        if not 0 <= t < self.num_timesteps:
+            raise ValueError(f"timestep: expected 0 <= t < {self.num_timesteps}, got {t}")
+
+    def add_noise(self, clean: torch.Tensor, noise: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """Forward process q(x_t | x_0) = sqrt(abar_t) x_0 + sqrt(1 - abar_t) eps.  clean, noise: (B, D); t: (B,)."""
+        if t.min() < 0 or t.max() >= self.num_timesteps:
+            raise ValueError(f"timestep: expected values in [0, {self.num_timesteps}), got [{t.min()}, {t.max()}]")
+        t = t.to(self.sqrt_alphas_cumprod.device)
+        return (
+            self.sqrt_alphas_cumprod[t, None].to(clean) * clean
+            + self.sqrt_one_minus_alphas_cumprod[t, None].to(clean) * noise
+        )
+
+    def predict_clean(self, model_output: torch.Tensor, t: int, sample: torch.Tensor, prediction: str) -> torch.Tensor:
+        """The denoiser's estimate of x_0, whatever it was trained to predict."""
+        if prediction == "sample":
+            return model_output
+        if prediction != "epsilon":
+            raise ValueError(f"prediction: expected one of {PREDICTION_KINDS}, got {prediction!r}")
+        f = self._floats
+        return (sample - f["sqrt_one_minus_alphas_cumprod"][t] * model_output) / f["sqrt_alphas_cumprod"][t]
+
+    def ddpm_step(
+        self, clean: torch.Tensor, t: int, sample: torch.Tensor, *, generator: torch.Generator | None = None
+    ) -> torch.Tensor:
+        """One ancestral step x_t -> x_{t-1} (paper Algorithm 2, Ho eq. 6-7), given the estimate of x_0.
+
+        1. mean of q(x_{t-1} | x_t, x_0): a blend of the clean estimate and the current sample
+        2. add sigma_t z with sigma_t^2 the posterior variance; z = 0 at the last step (t = 0)
+        """
+        self._check_timestep(t)
+        f = self._floats
+        mean = f["posterior_mean_coef_clean"][t] * clean + f["posterior_mean_coef_noisy"][t] * sample
+        if t == 0:
+            return mean
+        noise = torch.randn(sample.shape, generator=generator, device=sample.device, dtype=sample.dtype)
+        return mean + math.sqrt(f["posterior_variance"][t]) * noise
+
+    def ddim_step(self, clean: torch.Tensor, t: int, t_prev: int, sample: torch.Tensor) -> torch.Tensor:
+        """One deterministic DDIM step x_t -> x_{t_prev} (Song et al. 2021, eq. 12 with eta = 0).
+
+        t_prev = -1 means the clean end, where alpha_cumprod is 1 and the step returns x_0.
+        1. the noise implied by x_t and the clean estimate
+        2. re-noise the clean estimate to the level of t_prev along that same noise
+        """
+        self._check_timestep(t)
+        f = self._floats
+        epsilon = (sample - f["sqrt_alphas_cumprod"][t] * clean) / f["sqrt_one_minus_alphas_cumprod"][t]
+        if t_prev < 0:
+            return clean
+        return f["sqrt_alphas_cumprod"][t_prev] * clean + f["sqrt_one_minus_alphas_cumprod"][t_prev] * epsilon
+
+    def ddim_timesteps(self, steps: int | None) -> list[int]:
+        """Evenly strided timesteps from T-1 down to 0 for a DDIM run of `steps` steps (None = all T)."""
+        steps = self.num_timesteps if steps is None else steps
+        if not 1 <= steps <= self.num_timesteps:
+            raise ValueError(f"steps: expected 1 <= steps <= {self.num_timesteps}, got {steps}")
+        if steps == 1:
+            return [self.num_timesteps - 1]
+        # both ends included: the last step denoises from t=0, where the model is most precise
+        return torch.linspace(self.num_timesteps - 1, 0, steps, dtype=torch.float64).round().long().tolist()
