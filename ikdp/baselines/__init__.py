@@ -1,0 +1,1 @@
+"""Baselines IKDP is measured against: classical solvers and learned regressors."""
