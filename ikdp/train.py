@@ -133,7 +133,7 @@ def train(config: TrainConfig) -> Path:
         metrics["step"] = step
         train_record = {**asdict(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
         train_record["finished"] = final
-        train_record["torch_version"] = torch.__version__
+        train_record["torch_version"] = str(torch.__version__)
         train_record["threads"] = torch.get_num_threads()
         save_checkpoint(
             output,
