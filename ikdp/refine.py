@@ -19,10 +19,13 @@ def damped_least_squares(
     *,
     steps: int = 5,
     damping: float = 1e-3,
+    max_miss_fraction: float = 0.2,
 ) -> torch.Tensor:
     """link_headings: (..., N), targets: (..., 2) -> refined headings (..., N), wrapped.
 
-    Runs in float64: the last steps correct errors near float32's resolution.
+    Each step aims at most `max_miss_fraction` of the reach away (Buss's clamping):
+    a far miss linearised in one jump overshoots and oscillates. Runs in float64:
+    the last steps correct errors near float32's resolution.
     """
     if steps < 0:
         raise ValueError(f"refine steps: expected a non-negative integer, got {steps}")
@@ -30,8 +33,10 @@ def damped_least_squares(
     headings = link_headings.double()
     targets = targets.double()
     lengths = lengths.double()
+    max_miss = max_miss_fraction * float(lengths.sum())
     for _ in range(steps):
         miss = targets - tip_position(headings, lengths)  # (..., 2)
+        miss = miss * (max_miss / miss.norm(dim=-1, keepdim=True).clamp(min=max_miss))
         jacobian = tip_jacobian(headings, lengths)  # (..., 2, N)
         gram = jacobian @ jacobian.transpose(-1, -2)  # (..., 2, 2)
         a = gram[..., 0, 0] + damping**2

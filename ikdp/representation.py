@@ -43,6 +43,14 @@ class AngleRepresentation:
             return torch.stack((torch.cos(x * math.pi), torch.sin(x * math.pi)), dim=-1)
         return torch.nn.functional.normalize(x.unflatten(-1, (self.num_links, 2)), dim=-1)
 
+    def turn(self, x: torch.Tensor, angles: torch.Tensor) -> torch.Tensor:
+        """Turn every link of x (..., D) by `angles` (..., N); cossin results are unit pairs."""
+        if self.kind == "angle":
+            return x + angles / math.pi
+        unit = self.unit_vectors(x)  # (..., N, 2)
+        perpendicular = torch.stack((-unit[..., 1], unit[..., 0]), dim=-1)
+        return (unit * torch.cos(angles)[..., None] + perpendicular * torch.sin(angles)[..., None]).flatten(-2)
+
     def project(self, x: torch.Tensor) -> torch.Tensor:
         """Put an estimate of the clean sample back on the data manifold (the role of DDPM's clipping)."""
         if self.kind == "angle":

@@ -114,7 +114,9 @@ class Solver:
         raw = result.headings  # (B, K, N)
         raw_error = (tip_position(raw, lengths) - targets[:, None]).norm(dim=-1)
         if refine_steps:
-            refined = damped_least_squares(raw, targets[:, None].expand(-1, num_samples, -1), lengths, steps=refine_steps)
+            # aim at the nearest reachable point: for a target beyond reach that is the stretched arm
+            goals = conditions[:, None].expand(-1, num_samples, -1)
+            refined = damped_least_squares(raw, goals, lengths, steps=refine_steps)
             refined_error = (tip_position(refined.double(), lengths.double()) - targets[:, None].double()).norm(dim=-1)
             angles, error = refined, refined_error.float()
         else:

@@ -41,7 +41,8 @@ class TrainConfig:
     hidden: int = 128  # film: MLP width
     blocks: int = 3  # film: residual blocks
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
-    tip_loss_weight: float = 1.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
+    tip_loss_weight: float = 100.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
+    snr_gamma: float = 5.0  # Min-SNR loss weighting min(SNR, gamma)/gamma; 0 = uniform over t, the paper's
     steps: int = 20_000  # optimizer steps
     batch: int = 1024  # poses per step
     lr: float = 1e-3  # peak learning rate (AdamW), cosine decay to a tenth
@@ -156,7 +157,9 @@ def train(config: TrainConfig) -> Path:
     try:
         while step < config.steps:
             headings = prior.sample(config.batch, config.joints, generator=data_generator).to(device)
-            losses = model.compute_loss(headings, tip_loss_weight=config.tip_loss_weight, generator=data_generator)
+            losses = model.compute_loss(
+                headings, tip_loss_weight=config.tip_loss_weight, snr_gamma=config.snr_gamma, generator=data_generator
+            )
             optimizer.zero_grad(set_to_none=True)
             losses["loss"].backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)

@@ -2,10 +2,11 @@
 
 Why this shape (measured in docs/DENOISER_CHOICE.md):
 - The network sees what the arm *does* at x_t, not only the numbers of x_t:
-  the tip's miss vector e = target - tip, and J^T e per link (the direction a
-  Jacobian-transpose step would turn each link). Near
-  t = 0 denoising becomes "correct a nearly right pose", and these features
-  make that a short reach for an MLP.
+  the tip's miss vector e = target - tip, and the damped least-squares step
+  per link (how a DLS solver would turn each link). Near t = 0 denoising
+  becomes "correct a nearly right pose", and this makes it a short reach.
+- It predicts x_0 as a turn of each link of x_t, so the correction near t = 0
+  is nearly linear in the DLS feature, which an MLP learns precisely.
 - The target and timestep enter by FiLM (scale and shift of every block), as
   in diffusion_policy, so the condition modulates all layers, not just the input.
 - The condition is computed apart from the noisy sample (`condition`), so a
@@ -21,6 +22,8 @@ from ikdp.denoisers.config import DenoiserConfig
 from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.representation import AngleRepresentation
 
+DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the reach
+
 
 class FiLMDenoiser(nn.Module):
     def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, lengths: torch.Tensor):
@@ -30,14 +33,12 @@ class FiLMDenoiser(nn.Module):
         num_links, dim, hidden = representation.num_links, representation.dim, config.hidden
         self.register_buffer("lengths", lengths.float().clone(), persistent=False)
         self.reach = float(lengths.sum())
-        feature_dim = dim + 2 + num_links  # x_t, the tip's miss vector, J^T e per link
-        # One matrix maps unit bone directions (M, 2N) to [bone vectors (2N), tip (2)].
-        bone_vectors = torch.kron(torch.diag(lengths.float()), torch.eye(2))  # (2N, 2N)
-        tip = torch.kron(lengths[:, None].float(), torch.eye(2))  # (2N, 2)
-        self.register_buffer("kinematics", torch.cat((bone_vectors, tip), dim=1), persistent=False)
+        feature_dim = dim + 2 + num_links  # x_t, the tip's miss vector, a damped least-squares step per link
         self.register_buffer("perpendicular", torch.tensor([[0.0, -1.0], [1.0, 0.0]]), persistent=False)
-        scale = torch.cat((torch.ones(dim), torch.full((2,), 1 / self.reach), torch.full((num_links,), 1 / self.reach**2)))
-        self.register_buffer("feature_scale", scale, persistent=False)  # lengths in units of the reach
+        self.damping_squared = (DLS_DAMPING * self.reach) ** 2
+        # the miss in tenths of the reach: the last steps correct misses of a few thousandths
+        scale = torch.cat((torch.ones(dim), torch.full((2,), 10 / self.reach), torch.ones(num_links)))
+        self.register_buffer("feature_scale", scale, persistent=False)
         self.input = nn.Linear(feature_dim, hidden)
         self.condition_net = nn.Sequential(
             nn.Linear(config.time_dim + 2, hidden),
@@ -45,7 +46,7 @@ class FiLMDenoiser(nn.Module):
             nn.Linear(hidden, config.blocks * 2 * hidden),
         )
         self.blocks = nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(config.blocks))
-        self.output = nn.Linear(hidden, dim)
+        self.output = nn.Linear(hidden, num_links)  # a turn of each link: x_0 = x_t rotated
         nn.init.zeros_(self.output.weight)  # start as the identity: predict x_0 = x_t
         nn.init.zeros_(self.output.bias)
 
@@ -56,26 +57,37 @@ class FiLMDenoiser(nn.Module):
         return torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2)
 
     def features(self, x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """(M, D) noisy sample, (M, 2) target -> (M, F): x_t, the tip's miss vector and J^T e.
+        """(M, D) noisy sample, (M, 2) target -> (M, F): x_t, the tip's miss e and a DLS step.
 
-        Written with few tensor ops: at sampling time each op's fixed cost, not its
-        arithmetic, is what a step pays.
+        The step is J^T (J J^T + lambda^2 I)^-1 e for the pose decoded from x_t: the turn of
+        each link that a damped least-squares solver would take. J J^T is 2x2 and equals the
+        bones' Gram matrix turned by 90 degrees, so all of it is a handful of tensor ops:
+        at sampling time each op's fixed cost, not its arithmetic, is what a step pays.
         """
-        num_links = self.representation.num_links
-        bones = self.representation.unit_vectors(x).flatten(-2)  # (M, 2N) unit direction per bone
-        vectors_and_tip = bones @ self.kinematics  # (M, 2N + 2)
-        miss = target - vectors_and_tip[:, -2:]  # (M, 2): target - tip
-        bone_vectors = vectors_and_tip[:, :-2].unflatten(-1, (num_links, 2))  # (M, N, 2)
-        # J^T e: column n of the tip Jacobian (w.r.t. absolute headings) is bone n turned by 90 degrees
-        jacobian_t_miss = (bone_vectors * (miss @ self.perpendicular)[:, None]).sum(-1)  # (M, N)
-        return torch.cat((x, miss, jacobian_t_miss), dim=-1) * self.feature_scale
+        bones = self.representation.unit_vectors(x) * self.lengths[:, None]  # (M, N, 2)
+        miss = target - bones.sum(dim=-2)  # (M, 2): target - tip
+        gram = bones.transpose(-1, -2) @ bones  # (M, 2, 2); J J^T = R gram R^T with R the 90-degree turn
+        a = gram[:, 0, 0] + self.damping_squared
+        d = gram[:, 1, 1] + self.damping_squared
+        b = gram[:, 0, 1]
+        # (J J^T + lambda^2 I)^-1 = (gram + lambda^2 I) / det(gram + lambda^2 I)
+        solved = torch.stack((a * miss[:, 0] + b * miss[:, 1], b * miss[:, 0] + d * miss[:, 1]), dim=-1)
+        solved = solved / (a * d - b * b)[:, None]
+        # J^T v per link: column n of J is bone n turned by 90 degrees
+        step = (bones * (solved @ self.perpendicular)[:, None]).sum(-1)  # (M, N)
+        return torch.cat((x, miss, step), dim=-1) * self.feature_scale
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
-        """x: (M, D), target: (M, 2), film: (M, blocks, 2, hidden) -> the estimate of x_0, (M, D)."""
+        """x: (M, D), target: (M, 2), film: (M, blocks, 2, hidden) -> the estimate of x_0, (M, D).
+
+        The network outputs a turn of each link, and x_0 is x_t turned by it: a clean pose
+        is on the circle of headings, so a turn can reach any of it, and near t = 0, where
+        the pose is nearly right, the turn it needs is close to the DLS step it was given.
+        """
         h = self.input(self.features(x, target))
         for index, block in enumerate(self.blocks):
             h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], h, film[:, index, 0])))
-        return x + self.output(nn.functional.silu(h))  # residual to the input, as in the paper
+        return self.representation.turn(x, self.output(nn.functional.silu(h)))
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return self.denoise(x, target, self.condition(t, target))

@@ -1,0 +1,23 @@
+"""Shared fixtures: a tiny checkpoint trained by the project's own training code."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from ikdp.train import TrainConfig, train
+
+# Tests are small; one thread avoids OpenMP spinning against other processes on a 2-core machine.
+torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="session")
+def tiny_checkpoint(tmp_path_factory):
+    """A 3-link model trained for a few steps: loadable, not accurate."""
+    folder = tmp_path_factory.mktemp("tiny")
+    config = TrainConfig(
+        joints=3, steps=30, batch=64, hidden=32, blocks=1, timesteps=20, eval_targets=20, save_every=1000,
+        output=str(folder / "tiny.pt"), log_dir=str(folder / "tb"), threads=1,
+    )
+    torch.manual_seed(0)
+    return train(config)

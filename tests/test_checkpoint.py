@@ -1,0 +1,93 @@
+import os
+import pickle
+
+import pytest
+import torch
+
+import ikdp
+from ikdp.checkpoint import read_checkpoint, save_checkpoint
+
+
+def test_round_trip_gives_identical_samples(tiny_checkpoint):
+    first, second = ikdp.load(tiny_checkpoint), ikdp.load(tiny_checkpoint)
+    a = first.solve([[1.0, 1.0]], num_samples=4, generator=torch.Generator().manual_seed(7))
+    b = second.solve([[1.0, 1.0]], num_samples=4, generator=torch.Generator().manual_seed(7))
+    torch.testing.assert_close(a.angles, b.angles, rtol=0, atol=0)
+
+
+def test_checkpoint_is_plain_data(tiny_checkpoint):
+    payload = torch.load(tiny_checkpoint, weights_only=True)
+    assert payload["format"] == "ikdp-checkpoint" and payload["version"] == 1
+    assert payload["model"]["lengths"] == (1.0, 1.0, 1.0) or list(payload["model"]["lengths"]) == [1.0, 1.0, 1.0]
+    assert payload["train"]["step"] == 30 and payload["train"]["finished"] is True
+    assert "tip_error_median" in payload["metrics"]
+
+
+def test_non_checkpoint_is_refused(tmp_path):
+    path = tmp_path / "notes.pt"
+    path.write_text("hello")
+    with pytest.raises(ikdp.CheckpointError, match="not an IKDP checkpoint"):
+        ikdp.load(path)
+    other = tmp_path / "other.pt"
+    torch.save({"weights": torch.zeros(3)}, other)
+    with pytest.raises(ikdp.CheckpointError, match="format tag"):
+        ikdp.load(other)
+    with pytest.raises(ikdp.CheckpointError, match="no such file"):
+        ikdp.load(tmp_path / "missing.pt")
+
+
+def test_truncated_checkpoint_is_refused(tiny_checkpoint, tmp_path):
+    data = tiny_checkpoint.read_bytes()
+    truncated = tmp_path / "truncated.pt"
+    truncated.write_bytes(data[: len(data) // 2])
+    with pytest.raises(ikdp.CheckpointError) as error:
+        ikdp.load(truncated)
+    assert "truncated" in str(error.value) and "\n" not in str(error.value)
+
+
+class _RunsCode:
+    def __reduce__(self):
+        return (os.system, ("touch pwned_by_checkpoint",))
+
+
+def test_pickled_code_never_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / "evil.pt"
+    torch.save({"format": "ikdp-checkpoint", "version": 1, "payload": _RunsCode()}, path, pickle_protocol=2)
+    with pytest.raises(ikdp.CheckpointError, match="refused"):
+        ikdp.load(path)
+    assert not (tmp_path / "pwned_by_checkpoint").exists()
+    assert pickle  # the module the attack relies on is the one torch.load(weights_only=True) restricts
+
+
+def test_other_version_is_refused(tiny_checkpoint, tmp_path):
+    payload = torch.load(tiny_checkpoint, weights_only=True)
+    payload["version"] = 99
+    path = tmp_path / "future.pt"
+    torch.save(payload, path)
+    with pytest.raises(ikdp.CheckpointError, match="version 99"):
+        ikdp.load(path)
+
+
+def test_mismatched_weights_are_refused(tiny_checkpoint, tmp_path):
+    payload = torch.load(tiny_checkpoint, weights_only=True)
+    payload["model"]["denoiser"]["hidden"] = 48
+    path = tmp_path / "mismatch.pt"
+    torch.save(payload, path)
+    with pytest.raises(ikdp.CheckpointError, match="weights do not match"):
+        ikdp.load(path)
+
+
+def test_save_is_atomic(tmp_path):
+    path = tmp_path / "model.pt"
+    save_checkpoint(path, {"model": {}, "prior": {}, "train": {}, "metrics": {}, "state_dict": {}})
+    before = path.read_bytes()
+
+    class Unsaveable:
+        pass
+
+    with pytest.raises(Exception):
+        save_checkpoint(path, {"model": Unsaveable().__init__})  # torch.save cannot write a method-wrapper
+    assert path.read_bytes() == before  # the old checkpoint survives a failed write
+    assert [p.name for p in tmp_path.iterdir()] == ["model.pt"]  # no temp file left behind
+    assert read_checkpoint(path)["format"] == "ikdp-checkpoint"

@@ -1,0 +1,96 @@
+import math
+
+import pytest
+import torch
+
+from ikdp.schedule import DiffusionSchedule, ScheduleConfig
+
+
+def test_linear_betas_scaled_to_T():
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=80))
+    # DDPM's 1e-4 .. 0.02 at T=1000, scaled by 1000/80
+    assert schedule.betas[0].item() == pytest.approx(0.00125)
+    assert schedule.betas[-1].item() == pytest.approx(0.25)
+    beta_1 = 0.00125 + (0.25 - 0.00125) / 79
+    assert schedule.alphas_cumprod[1].item() == pytest.approx((1 - 0.00125) * (1 - beta_1), rel=1e-6)
+    # posterior variance at t=1: beta_1 (1 - abar_0) / (1 - abar_1)
+    expected = beta_1 * 0.00125 / (1 - (1 - 0.00125) * (1 - beta_1))
+    assert schedule.posterior_variance[1].item() == pytest.approx(expected, rel=1e-5)
+    assert schedule.posterior_variance[0].item() == 0.0
+
+
+@pytest.mark.parametrize("timesteps", [40, 80, 100])
+def test_paper_timesteps_reach_noise(timesteps):
+    for kind in ("linear", "cosine"):
+        schedule = DiffusionSchedule(ScheduleConfig(timesteps=timesteps, kind=kind))
+        assert schedule.num_timesteps == timesteps
+        assert (schedule.alphas_cumprod.diff() < 0).all()
+        assert schedule.alphas_cumprod[-1] < 1e-3  # x_T is (nearly) pure noise
+
+
+def test_cosine_matches_its_formula():
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="cosine"))
+    f = lambda t: math.cos((t / 100 + 0.008) / 1.008 * math.pi / 2) ** 2
+    assert schedule.alphas_cumprod[49].item() == pytest.approx(f(50) / f(0), rel=1e-5)
+
+
+def test_add_noise_is_the_forward_marginal():
+    schedule = DiffusionSchedule()
+    clean, noise = torch.ones(3, 2), torch.full((3, 2), 2.0)
+    t = torch.tensor([0, 10, 79])
+    noisy = schedule.add_noise(clean, noise, t)
+    expected = schedule.alphas_cumprod[t].sqrt()[:, None] + 2 * (1 - schedule.alphas_cumprod[t]).sqrt()[:, None]
+    torch.testing.assert_close(noisy, expected.expand(3, 2))
+
+
+def test_ddpm_step_by_hand():
+    schedule = DiffusionSchedule()
+    clean, sample, t = torch.tensor([[0.5, -0.2]]), torch.tensor([[1.0, 2.0]]), 10
+    step = schedule.ddpm_step(clean, t, sample, generator=torch.Generator().manual_seed(3))
+    z = torch.randn((1, 2), generator=torch.Generator().manual_seed(3))
+    abar, abar_prev = schedule.alphas_cumprod[t].double(), schedule.alphas_cumprod[t - 1].double()
+    beta = schedule.betas[t].double()
+    mean = abar_prev.sqrt() * beta / (1 - abar) * clean + (1 - beta).sqrt() * (1 - abar_prev) / (1 - abar) * sample
+    expected = mean + (beta * (1 - abar_prev) / (1 - abar)).sqrt() * z
+    torch.testing.assert_close(step, expected.float())
+    # the last step adds no noise and lands on the clean estimate
+    torch.testing.assert_close(schedule.ddpm_step(clean, 0, sample), clean)
+
+
+def test_ddim_step_keeps_the_implied_noise():
+    schedule = DiffusionSchedule()
+    clean, noise = torch.tensor([[0.3, 0.4]]), torch.tensor([[-1.0, 0.5]])
+    x_t = schedule.add_noise(clean, noise, torch.tensor([60]))
+    x_prev = schedule.ddim_step(clean, 60, 30, x_t)
+    torch.testing.assert_close(x_prev, schedule.add_noise(clean, noise, torch.tensor([30])))
+    torch.testing.assert_close(schedule.ddim_step(clean, 5, -1, x_t), clean)
+
+
+def test_ddim_timesteps():
+    schedule = DiffusionSchedule()
+    assert schedule.ddim_timesteps(None) == list(range(79, -1, -1))
+    strided = schedule.ddim_timesteps(20)
+    assert len(strided) == 20 and strided[0] == 79 and strided[-1] == 0
+    assert all(a > b for a, b in zip(strided, strided[1:]))
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda s: s.ddim_timesteps(81), "steps"),
+        (lambda s: s.ddim_timesteps(0), "steps"),
+        (lambda s: s.ddpm_step(torch.zeros(1, 2), 80, torch.zeros(1, 2)), "timestep"),
+        (lambda s: s.add_noise(torch.zeros(1, 2), torch.zeros(1, 2), torch.tensor([-1])), "timestep"),
+        (lambda s: s.predict_clean(torch.zeros(1, 2), 3, torch.zeros(1, 2), "v"), "prediction"),
+    ],
+)
+def test_bad_arguments_raise(call, message):
+    with pytest.raises(ValueError, match=message):
+        call(DiffusionSchedule())
+
+
+def test_bad_config_raises():
+    with pytest.raises(ValueError, match="schedule kind"):
+        DiffusionSchedule(ScheduleConfig(kind="quadratic"))
+    with pytest.raises(ValueError, match="timesteps"):
+        DiffusionSchedule(ScheduleConfig(timesteps=0))
