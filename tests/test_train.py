@@ -1,0 +1,108 @@
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import torch
+
+import ikdp
+from ikdp._cli import parse_into
+from ikdp.priors import PosePrior, load_pose_file, make_prior
+from ikdp.train import TrainConfig, train
+
+
+def small_config(tmp_path, **changes):
+    values = dict(
+        joints=2, steps=20, batch=32, hidden=16, blocks=1, timesteps=10, eval_targets=10, save_every=10,
+        output=str(tmp_path / "model.pt"), log_dir=str(tmp_path / "tb"), threads=1,
+    )
+    values.update(changes)
+    return TrainConfig(**values)
+
+
+def test_training_is_repeatable_and_resumable(tmp_path):
+    straight = train(small_config(tmp_path / "a"))
+    torch.manual_seed(123)  # global randomness must not matter: the seed is passed in
+    train(small_config(tmp_path / "b", steps=10))
+    resumed = train(small_config(tmp_path / "b", steps=20, resume=True))
+    a = torch.load(straight, weights_only=True)["state_dict"]
+    b = torch.load(resumed, weights_only=True)["state_dict"]
+    assert a.keys() == b.keys()
+    for name in a:
+        torch.testing.assert_close(a[name], b[name], rtol=0, atol=0)
+
+
+def test_training_writes_tensorboard_curves(tmp_path):
+    train(small_config(tmp_path, steps=50))
+    events = list((tmp_path / "tb").glob("events.out.tfevents.*"))
+    assert events
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    accumulator = EventAccumulator(str(tmp_path / "tb"))
+    accumulator.Reload()
+    assert {"train/theta_loss", "train/tip_distance", "train/lr"} <= set(accumulator.Tags()["scalars"])
+
+
+def test_cli_is_generated_from_the_dataclass():
+    config = parse_into(TrainConfig, "test", ["--joints", "3", "--lengths", "1", "0.5", "2", "--no-resume"])
+    assert config.joints == 3 and config.lengths == (1.0, 0.5, 2.0) and config.resume is False
+    assert config.timesteps == TrainConfig.timesteps  # defaults come from the dataclass only
+
+
+def test_cli_bad_option_exits_with_a_message(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "ikdp.train", "--joints", "2", "--lengths", "1", "1", "1", "--output", str(tmp_path / "x.pt")],
+        capture_output=True, text=True,
+    )
+    assert result.returncode == 2
+    assert "lengths" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_interrupted_training_leaves_a_loadable_checkpoint(tmp_path):
+    output = tmp_path / "model.pt"
+    command = [
+        sys.executable, "-m", "ikdp.train", "--joints", "2", "--steps", "1000000", "--batch", "16", "--hidden", "16",
+        "--blocks", "1", "--timesteps", "10", "--eval-targets", "5", "--threads", "1", "--save-every", "5",
+        "--output", str(output), "--log-dir", str(tmp_path / "tb"),
+    ]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not output.exists() and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.1)  # wait until the loop runs: the first periodic checkpoint
+    process.send_signal(signal.SIGINT)  # what Ctrl-C sends
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr[-500:]
+    assert "Traceback" not in stderr
+    solver = ikdp.load(output)
+    assert 5 <= solver.metadata["train"]["step"] < 1_000_000
+    assert solver.metadata["train"]["finished"] is False
+
+
+def test_priors(tmp_path):
+    generator = torch.Generator().manual_seed(0)
+    relaxed = PosePrior(kind="relaxed").sample(20000, 4, generator=generator)
+    bends = ikdp.absolute_to_relative(relaxed)[:, 1:]
+    assert abs(bends.std().item() - np.pi / 4) < 0.02
+    poses = np.array([[0.1, 0.2, 0.3], [0.0, -0.5, 1.0]])
+    np.save(tmp_path / "poses.npy", poses)
+    prior = make_prior(str(tmp_path / "poses.npy"), 3)
+    drawn = ikdp.absolute_to_relative(prior.sample(50, 3, generator=generator))
+    assert all(any(torch.allclose(row, torch.tensor(p, dtype=torch.float32), atol=1e-5) for p in poses) for row in drawn)
+
+
+@pytest.mark.parametrize(
+    "content, suffix, message",
+    [
+        ("", ".csv", "no poses"),
+        ("0.1,0.2\n0.3,0.4\n", ".csv", "expected 3 joint angles"),
+        ("0.1,0.2,nan\n", ".csv", "row 0 holds NaN"),
+        ("0.1,0.2,0.3\n", ".txt", "expected a .npy or .csv"),
+    ],
+)
+def test_pose_file_errors(tmp_path, content, suffix, message):
+    path = tmp_path / f"poses{suffix}"
+    path.write_text(content)
+    with pytest.raises(ValueError, match=message):
+        load_pose_file(path, 3)
