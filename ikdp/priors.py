@@ -9,6 +9,7 @@ every relative joint angle from N(0, relaxed_std^2), so bent-back poses are rare
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,7 +73,9 @@ def load_pose_file(path: str | Path, num_links: int) -> torch.Tensor:
         if path.suffix == ".npy":
             poses = np.load(path, allow_pickle=False)
         elif path.suffix == ".csv":
-            poses = np.loadtxt(path, delimiter=",", ndmin=2)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # an empty file is reported below, as a ValueError
+                poses = np.loadtxt(path, delimiter=",", ndmin=2)
         else:
             raise ValueError(f"prior file {path}: expected a .npy or .csv file")
     except ValueError as error:
