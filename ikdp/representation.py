@@ -43,13 +43,16 @@ class AngleRepresentation:
             return torch.stack((torch.cos(x * math.pi), torch.sin(x * math.pi)), dim=-1)
         return torch.nn.functional.normalize(x.unflatten(-1, (self.num_links, 2)), dim=-1)
 
-    def turn(self, x: torch.Tensor, angles: torch.Tensor) -> torch.Tensor:
-        """Turn every link of x (..., D) by `angles` (..., N); cossin results are unit pairs."""
+    def turn(self, x: torch.Tensor, angles: torch.Tensor, *, unit: torch.Tensor | None = None) -> torch.Tensor:
+        """Turn every link of x (M, D) by `angles` (M, N); `unit` = unit_vectors(x) if already known.
+
+        cossin results are unit pairs: (cos, sin) times e^(i angle), as complex numbers.
+        """
         if self.kind == "angle":
             return x + angles / math.pi
-        unit = self.unit_vectors(x)  # (..., N, 2)
-        perpendicular = torch.stack((-unit[..., 1], unit[..., 0]), dim=-1)
-        return (unit * torch.cos(angles)[..., None] + perpendicular * torch.sin(angles)[..., None]).flatten(-2)
+        unit = self.unit_vectors(x) if unit is None else unit
+        turned = torch.view_as_complex(unit.contiguous()) * torch.polar(torch.ones_like(angles), angles)
+        return torch.view_as_real(turned).flatten(-2)
 
     def project(self, x: torch.Tensor) -> torch.Tensor:
         """Put an estimate of the clean sample back on the data manifold (the role of DDPM's clipping)."""

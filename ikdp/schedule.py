@@ -106,11 +106,11 @@ class DiffusionSchedule:
         """
         self._check_timestep(t)
         f = self._floats
-        mean = f["posterior_mean_coef_clean"][t] * clean + f["posterior_mean_coef_noisy"][t] * sample
+        mean = torch.add(f["posterior_mean_coef_clean"][t] * clean, sample, alpha=f["posterior_mean_coef_noisy"][t])
         if t == 0:
             return mean
         noise = torch.randn(sample.shape, generator=generator, device=sample.device, dtype=sample.dtype)
-        return mean + math.sqrt(f["posterior_variance"][t]) * noise
+        return mean.add_(noise, alpha=math.sqrt(f["posterior_variance"][t]))
 
     def ddim_step(self, clean: torch.Tensor, t: int, t_prev: int, sample: torch.Tensor) -> torch.Tensor:
         """One deterministic DDIM step x_t -> x_{t_prev} (Song et al. 2021, eq. 12 with eta = 0).

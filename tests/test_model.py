@@ -32,7 +32,8 @@ def test_cossin_is_wrap_free():
 def test_film_features_are_tip_miss_and_dls_step():
     model = IKDiffusion(ModelConfig(lengths=(1.0, 2.0, 0.5)))
     headings, targets = torch.randn(5, 3), torch.randn(5, 2)
-    features = model.denoiser.features(model.representation.encode(headings), targets) / model.denoiser.feature_scale
+    x = model.representation.encode(headings)
+    features = model.denoiser.features(x, model.representation.unit_vectors(x), targets) / model.denoiser.feature_scale
     miss = targets - tip_position(headings, model.lengths)
     torch.testing.assert_close(features[:, 6:8], miss, atol=1e-5, rtol=0)
     jacobian = tip_jacobian(headings, model.lengths)

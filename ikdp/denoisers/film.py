@@ -35,7 +35,7 @@ class FiLMDenoiser(nn.Module):
         self.reach = float(lengths.sum())
         feature_dim = dim + 2 + num_links  # x_t, the tip's miss vector, a damped least-squares step per link
         self.register_buffer("perpendicular", torch.tensor([[0.0, -1.0], [1.0, 0.0]]), persistent=False)
-        self.damping_squared = (DLS_DAMPING * self.reach) ** 2
+        self.register_buffer("damping_identity", (DLS_DAMPING * self.reach) ** 2 * torch.eye(2), persistent=False)
         # the miss in tenths of the reach: the last steps correct misses of a few thousandths
         scale = torch.cat((torch.ones(dim), torch.full((2,), 10 / self.reach), torch.ones(num_links)))
         self.register_buffer("feature_scale", scale, persistent=False)
@@ -56,25 +56,22 @@ class FiLMDenoiser(nn.Module):
         film = self.condition_net(embedded).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
         return torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2)
 
-    def features(self, x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """(M, D) noisy sample, (M, 2) target -> (M, F): x_t, the tip's miss e and a DLS step.
+    def features(self, x: torch.Tensor, unit: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """(M, D) noisy sample, its (M, N, 2) unit bone directions, (M, 2) target -> (M, F).
 
-        The step is J^T (J J^T + lambda^2 I)^-1 e for the pose decoded from x_t: the turn of
-        each link that a damped least-squares solver would take. J J^T is 2x2 and equals the
-        bones' Gram matrix turned by 90 degrees, so all of it is a handful of tensor ops:
+        F is x_t, the tip's miss e and the damped least-squares step J^T (J J^T + lambda^2 I)^-1 e:
+        the turn of each link a DLS solver would take. With B the (2, N) bone vectors, J = R B for
+        R the 90-degree turn, so the step is B^T (B B^T + lambda^2 I)^-1 R^T e: one 2x2 solve,
+        written with Cayley-Hamilton, A^-1 = (tr(A) I - A) / det(A). Few tensor ops on purpose:
         at sampling time each op's fixed cost, not its arithmetic, is what a step pays.
         """
-        bones = self.representation.unit_vectors(x) * self.lengths[:, None]  # (M, N, 2)
+        bones = unit * self.lengths[:, None]  # (M, N, 2)
         miss = target - bones.sum(dim=-2)  # (M, 2): target - tip
-        gram = bones.transpose(-1, -2) @ bones  # (M, 2, 2); J J^T = R gram R^T with R the 90-degree turn
-        a = gram[:, 0, 0] + self.damping_squared
-        d = gram[:, 1, 1] + self.damping_squared
-        b = gram[:, 0, 1]
-        # (J J^T + lambda^2 I)^-1 = (gram + lambda^2 I) / det(gram + lambda^2 I)
-        solved = torch.stack((a * miss[:, 0] + b * miss[:, 1], b * miss[:, 0] + d * miss[:, 1]), dim=-1)
-        solved = solved / (a * d - b * b)[:, None]
-        # J^T v per link: column n of J is bone n turned by 90 degrees
-        step = (bones * (solved @ self.perpendicular)[:, None]).sum(-1)  # (M, N)
+        damped_gram = bones.transpose(-1, -2) @ bones + self.damping_identity  # (M, 2, 2)
+        turned_miss = (miss @ self.perpendicular).unsqueeze(-1)  # (M, 2, 1): R^T e
+        trace = damped_gram.diagonal(dim1=-2, dim2=-1).sum(-1)[:, None, None]
+        solved = (trace * turned_miss - damped_gram @ turned_miss) / torch.linalg.det(damped_gram)[:, None, None]
+        step = (bones @ solved).squeeze(-1)  # (M, N)
         return torch.cat((x, miss, step), dim=-1) * self.feature_scale
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
@@ -84,10 +81,11 @@ class FiLMDenoiser(nn.Module):
         is on the circle of headings, so a turn can reach any of it, and near t = 0, where
         the pose is nearly right, the turn it needs is close to the DLS step it was given.
         """
-        h = self.input(self.features(x, target))
+        unit = self.representation.unit_vectors(x)
+        h = self.input(self.features(x, unit, target))
         for index, block in enumerate(self.blocks):
             h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], h, film[:, index, 0])))
-        return self.representation.turn(x, self.output(nn.functional.silu(h)))
+        return self.representation.turn(x, self.output(nn.functional.silu(h)), unit=unit)
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return self.denoise(x, target, self.condition(t, target))
