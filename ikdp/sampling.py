@@ -56,7 +56,9 @@ def run_reverse_diffusion(
     if condition_size <= PRECOMPUTE_CONDITION_LIMIT:
         # every step's condition for every distinct target in one call (S*B rows), then spread over the K samples
         per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
-        precomputed = per_target.unflatten(0, (len(timesteps), batch)).repeat_interleave(num_samples, dim=1)
+        precomputed = per_target.unflatten(0, (len(timesteps), batch))
+        if batch > 1:  # one target's condition broadcasts over its K rows as it is; several need spreading
+            precomputed = precomputed.repeat_interleave(num_samples, dim=1)
 
     # theta_T ~ N(0, I)
     x = torch.randn((rows, representation.dim), generator=generator, device=device, dtype=targets.dtype)
@@ -65,7 +67,9 @@ def run_reverse_diffusion(
         if precomputed is not None:
             condition = precomputed[index]
         else:
-            condition = denoiser.condition(t_all[index].expand(rows), row_targets)
+            condition = denoiser.condition(t_all[index].expand(batch), targets)  # once per distinct target
+            if batch > 1:
+                condition = condition.repeat_interleave(num_samples, dim=0)
         output = denoiser.denoise(x, row_targets, condition)
         clean = representation.project(schedule.predict_clean(output, t, x, prediction))
         if sampler == "ddpm":

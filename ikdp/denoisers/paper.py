@@ -53,6 +53,7 @@ class PaperDenoiser(nn.Module):
         """x: (M, D) -> the estimate of x_0, (M, D). `target` is already inside `condition`."""
         tokens = x.unflatten(-1, (self.num_links, self.token_size))  # (M, N, token)
         encoded = self.encoder(self.token_in(tokens) + self.position)  # (M, N, width)
+        condition = condition.expand(x.shape[0], -1)  # a single target's condition serves all K rows
         mixed = self.mlp(torch.cat((encoded.flatten(1), condition), dim=-1)).unflatten(-1, (self.num_links, -1))
         decoded = self.decoder(mixed, encoded)
         return x + self.token_out(decoded).flatten(1)
