@@ -106,3 +106,16 @@ def test_pose_file_errors(tmp_path, content, suffix, message):
     path.write_text(content)
     with pytest.raises(ValueError, match=message):
         load_pose_file(path, 3)
+
+
+def test_describe_rebuilds_the_training_command(tiny_checkpoint):
+    import shlex
+
+    from ikdp.describe import describe, training_command
+
+    train = torch.load(tiny_checkpoint, weights_only=True)["train"]
+    command = training_command(train)
+    rebuilt = parse_into(TrainConfig, "test", shlex.split(command)[3:])
+    for name in ("joints", "steps", "batch", "hidden", "blocks", "timesteps", "threads", "output", "log_dir"):
+        assert getattr(rebuilt, name) == train[name], name
+    assert str(tiny_checkpoint) in describe([str(tiny_checkpoint)])

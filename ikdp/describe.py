@@ -1,0 +1,77 @@
+"""Describe IKDP checkpoints: how each was trained and what it measured at save.
+
+    python -m ikdp.describe checkpoints/*.pt          # a markdown table and the commands
+
+Reads the checkpoint's own record (it never runs code from the file), and rebuilds
+the training command from the saved training config: every option that differs
+from today's default is spelled out, so the command stays true as defaults move.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import fields
+
+from ikdp.checkpoint import CheckpointError, read_checkpoint
+from ikdp.train import TrainConfig
+
+NOT_OPTIONS = {"step", "seconds", "finished", "torch_version"}
+MACHINE_OPTIONS = {"resume"}  # how a run was continued, not what it trained
+
+
+def training_command(train: dict) -> str:
+    """The `python -m ikdp.train ...` command that reproduces a saved training config."""
+    parts = ["python -m ikdp.train"]
+    for field in fields(TrainConfig):
+        if field.name in NOT_OPTIONS or field.name in MACHINE_OPTIONS or field.name not in train:
+            continue
+        value = train[field.name]
+        default = field.default
+        if isinstance(value, list):
+            value = tuple(value)
+        if value == default:
+            continue
+        flag = "--" + field.name.replace("_", "-")
+        if isinstance(value, bool):
+            parts.append(flag if value else "--no-" + field.name.replace("_", "-"))
+        elif isinstance(value, tuple):
+            parts.append(flag + " " + " ".join(str(v) for v in value))
+        else:
+            parts.append(f"{flag} {value}")
+    return " ".join(parts)
+
+
+def describe(paths: list[str]) -> str:
+    rows = ["| checkpoint | N | T | denoiser | representation | prior | steps | train time | median tip error at save |",
+            "|---|---|---|---|---|---|---|---|---|"]
+    commands = []
+    for path in paths:
+        payload = read_checkpoint(path)
+        model, train, metrics = payload["model"], payload["train"], payload["metrics"]
+        minutes = float(train.get("seconds", 0)) / 60
+        median = metrics.get("tip_error_median")
+        rows.append(
+            f"| `{path}` | {len(model['lengths'])} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
+            f"| {model['representation']} | {payload['prior']['kind']} | {train.get('step')} "
+            f"| {minutes:.1f} min ({train.get('threads')} thread) "
+            f"| {median:.4f} ({metrics.get('eval_targets')} targets, {metrics.get('sampler')}) |"
+            if median is not None else f"| `{path}` | ... |"
+        )
+        commands.append(f"- `{path}`: `{training_command(train)}`")
+    return "\n".join(rows) + "\n\nCommands:\n\n" + "\n".join(commands) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description="Describe IKDP checkpoints as markdown.")
+    parser.add_argument("paths", nargs="+", help="checkpoint files")
+    args = parser.parse_args(argv)
+    try:
+        print(describe(args.paths))
+    except CheckpointError as error:
+        print(f"error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    main()
