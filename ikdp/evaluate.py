@@ -34,10 +34,17 @@ from ikdp.evaluation.methods import (
     dls_from_prior,
     ikdp_method,
     learned_method,
+    random_pose,
 )
 from ikdp.evaluation.mmd import KERNEL_DESCRIPTION, mmd2
 from ikdp.evaluation.reference import rejection_reference, targets_from_prior, targets_in_disk
-from ikdp.evaluation.training import cached_baseline, cached_ikdp, paper_training_settings
+from ikdp.evaluation.training import (
+    cached_baseline,
+    cached_ikdp,
+    ikdp_training_config,
+    paper_training_settings,
+    train_in_parallel,
+)
 from ikdp.priors import PosePrior
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
 
@@ -63,10 +70,10 @@ class Sizes:
     fidelity_samples: int = 128  # K per target for MMD, and the size of each reference set
     reference_radius: float = 0.02  # rejection radius, as a fraction of the reach
     runtime_batch: int = 1000  # batch for the per-target runtime
-    runtime_repeats: tuple[int, int] = (20, 5)  # repeats: single target, batch
-    variant_steps: int = 1500  # training steps of each Table I/II paper-denoiser variant
+    runtime_repeats: tuple[int, int] = (20, 3)  # repeats: single target, batch
+    variant_steps: int = 2500  # training steps of each Table I/II paper-denoiser variant
     variant_batch: int = 256  # their batch
-    baseline_steps: int = 3000  # MLP and Neural IK training steps
+    baseline_steps: int = 2000  # MLP and Neural IK training steps
     baseline_batch: int = 512  # their batch
     standin_steps: int = 0  # 0: shipped checkpoints must exist; >0: train stand-ins this long where missing
 
@@ -223,6 +230,13 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
         "checkpoints": {},
     }
     stage = tqdm(total=8, desc="evaluate", dynamic_ncols=True)
+    results["stage_seconds"] = {}
+    last = [started]
+
+    def mark(name: str) -> None:
+        now = time.perf_counter()
+        results["stage_seconds"][name.split("=")[-1].strip(" ,")] = round(now - last[0], 1)
+        last[0] = now
 
     # 1. the shipped checkpoints (or stand-ins) and the models we train ourselves
     stage.set_postfix_str("models")
@@ -243,9 +257,8 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
         )
     paper_settings = paper_training_settings(checkpoints / SHIPPED["paper"])
     variant_grid = sorted({(n, 80) for n in sizes.joints} | {(4, t) for t in sizes.table2_timesteps})
-    variants = {}
-    for n, t in tqdm(variant_grid, desc="paper-denoiser variants", leave=False):
-        path = cached_ikdp(
+    variant_configs = {
+        (n, t): ikdp_training_config(
             cache,
             joints=n,
             timesteps=t,
@@ -255,7 +268,13 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
             threads=config.threads,
             settings=paper_settings,
         )
-        variants[n, t] = ikdp.load(path)
+        for n, t in variant_grid
+    }
+    # largest first, so the two workers finish together
+    train_in_parallel(
+        sorted(variant_configs.values(), key=lambda c: -c.joints), workers=1 if config.quick else config.threads
+    )
+    variants = {key: ikdp.load(train_config.output) for key, train_config in variant_configs.items()}
     results["variant_training"] = {
         "settings": paper_settings,
         "steps": sizes.variant_steps,
@@ -284,6 +303,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
         "optimizer": "Adam 1e-3, cosine",
     }
     stage.update()
+    mark(stage.postfix)
 
     # 2. accuracy on both target sets, and diversity, for every method and arm
     stage.set_postfix_str("accuracy")
@@ -301,7 +321,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
                 "Neural IK (MDN)", baselines["neural_ik", n, "uniform"], f"{n} sequential MDN draws", several=True
             ),
         ]
-        methods += classical_methods(lengths)
+        methods += classical_methods(lengths) + [random_pose(lengths)]
         methods_by_arm[n] = methods
         generator = torch.Generator().manual_seed(seed + n)
         fk_targets, fk_truth = targets_from_prior(uniform, sizes.accuracy_targets, lengths, generator=generator)
@@ -315,7 +335,8 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
                 "fk_uniform": experiments.accuracy(method, fk_targets, fk_truth, reach, seed),
                 "disk": experiments.accuracy(method, disk_targets, None, reach, seed),
             }
-            if method.several:
+            # raw IKDP samples seldom reach 1e-2 R; their refined twins carry the diversity measure
+            if method.several and (method.family != "ikdp" or "+ DLS" in method.name):
                 entry["diversity"], headings = experiments.diversity(
                     method, diversity_targets, sizes.diversity_samples, reach, seed
                 )
@@ -326,6 +347,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
         results["arms"][str(n)] = arm
     results["fans"] = fans
     stage.update()
+    mark(stage.postfix)
 
     # 3. Tables I and II: the paper-denoiser variants, one DDPM sample per FK-of-uniform target
     stage.set_postfix_str("tables I, II")
@@ -342,6 +364,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
             **experiments.accuracy(method, fk_targets, fk_truth, float(lengths.sum()), seed),
         }
     stage.update()
+    mark(stage.postfix)
 
     # 4. runtime of every N = 4 method
     stage.set_postfix_str("runtime")
@@ -351,7 +374,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
         batch_targets, _ = targets_from_prior(
             uniform, sizes.runtime_batch, lengths, generator=torch.Generator().manual_seed(seed + 99)
         )
-        for method in tqdm(methods_by_arm[4], desc="runtime N=4", leave=False):
+        for method in tqdm(methods_by_arm[4][:-1], desc="runtime N=4", leave=False):
             results["runtime"]["methods"][method.name] = experiments.runtime(
                 method,
                 batch_targets[:1],
@@ -361,6 +384,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
                 seed=seed,
             )
     stage.update()
+    mark(stage.postfix)
 
     # 5. fidelity: MMD to rejection-sampled references, uniform and relaxed priors, N = 4
     stage.set_postfix_str("fidelity")
@@ -415,6 +439,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
             entry["methods"][method.name] = experiments.fidelity(method, targets, reference_a, reach, seed)
         results["fidelity"][prior_name] = entry
     stage.update()
+    mark(stage.postfix)
 
     # 6. figure data: reverse process, forward noising, training curves
     stage.set_postfix_str("figure data")
@@ -441,6 +466,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
     if not results["training_curves"]:  # stand-ins keep their logs in the cache
         results["training_curves"] = training_curves(cache, [p.stem for p in sorted(cache.glob("standin_*.pt"))])
     stage.update()
+    mark(stage.postfix)
 
     # 7. files
     stage.set_postfix_str("writing")
@@ -449,10 +475,12 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
     figure_dir.mkdir(parents=True, exist_ok=True)
     results["figures"] = figures.draw_all(results, figure_dir)
     stage.update()
+    mark(stage.postfix)
     results["wall_seconds"] = time.perf_counter() - started
     (out_dir / "results.json").write_text(json.dumps(results, indent=1))
     (out_dir / "RESULTS.md").write_text(tables.render(results))
     stage.update()
+    mark(stage.postfix)
     stage.close()
     return results
 

@@ -11,7 +11,13 @@ from ikdp.baselines.ccd import ccd, solve_ccd
 from ikdp.baselines.closed_form import solve_two_link, two_link_solutions
 from ikdp.baselines.fabrik import fabrik, solve_fabrik
 from ikdp.baselines.mlp import MLPConfig, mlp_from_state, mlp_state, train_mlp
-from ikdp.baselines.neural_ik import NeuralIKConfig, neural_ik_from_state, neural_ik_state, sample_von_mises, train_neural_ik
+from ikdp.baselines.neural_ik import (
+    NeuralIKConfig,
+    neural_ik_from_state,
+    neural_ik_state,
+    sample_von_mises,
+    train_neural_ik,
+)
 from ikdp.kinematics import absolute_to_relative, tip_position
 from ikdp.priors import PosePrior
 
@@ -91,7 +97,10 @@ def test_learned_baselines_learn_and_round_trip():
     neural_ik = train_neural_ik(
         NeuralIKConfig(num_links=2, steps=150, batch=256, hidden=64, layers=2), prior, lengths, progress=False
     )
-    for model, rebuild in ((mlp, mlp_from_state(mlp_state(mlp))), (neural_ik, neural_ik_from_state(neural_ik_state(neural_ik)))):
+    for model, rebuild in (
+        (mlp, mlp_from_state(mlp_state(mlp))),
+        (neural_ik, neural_ik_from_state(neural_ik_state(neural_ik))),
+    ):
         for name, tensor in model.state_dict().items():
             torch.testing.assert_close(rebuild.state_dict()[name], tensor)
     untrained = torch.distributions.Uniform(-math.pi, math.pi)  # a random pose misses by ~1.4 on average

@@ -14,10 +14,20 @@ FIGURES = ("reverse_process", "forward_noising", "training_curves", "tip_error_c
 @pytest.mark.slow
 def test_quick_run_writes_every_table_and_figure(tmp_path):
     out_dir, cache = tmp_path / "out", tmp_path / "cache"
-    config = EvaluateConfig(quick=True, out_dir=str(out_dir), cache_dir=str(cache), checkpoints=str(tmp_path / "none"), threads=1)
+    config = EvaluateConfig(
+        quick=True, out_dir=str(out_dir), cache_dir=str(cache), checkpoints=str(tmp_path / "none"), threads=1
+    )
     results = evaluate(config, ["--quick"])
     report = (out_dir / "RESULTS.md").read_text()
-    for heading in ("## Table I", "## Table II", "## Table III", "## Accuracy", "## Diversity", "## Fidelity", "## Runtime"):
+    for heading in (
+        "## Table I",
+        "## Table II",
+        "## Table III",
+        "## Accuracy",
+        "## Diversity",
+        "## Fidelity",
+        "## Runtime",
+    ):
         assert heading in report
     for name in FIGURES:
         png = out_dir / "figures" / f"{name}.png"
@@ -34,12 +44,33 @@ def test_quick_run_writes_every_table_and_figure(tmp_path):
     assert results["wall_seconds"] < 120
     # a second run reuses the cache instead of training again
     cached = sorted(path.name for path in cache.glob("*.pt"))
-    main(["--quick", "--out-dir", str(out_dir), "--cache-dir", str(cache), "--checkpoints", str(tmp_path / "none"), "--threads", "1"])
+    main(
+        [
+            "--quick",
+            "--out-dir",
+            str(out_dir),
+            "--cache-dir",
+            str(cache),
+            "--checkpoints",
+            str(tmp_path / "none"),
+            "--threads",
+            "1",
+        ]
+    )
     assert sorted(path.name for path in cache.glob("*.pt")) == cached
 
 
 def test_missing_shipped_checkpoint_is_an_error_in_a_full_run(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
-        main(["--out-dir", str(tmp_path / "out"), "--cache-dir", str(tmp_path / "cache"), "--checkpoints", str(tmp_path / "none")])
+        main(
+            [
+                "--out-dir",
+                str(tmp_path / "out"),
+                "--cache-dir",
+                str(tmp_path / "cache"),
+                "--checkpoints",
+                str(tmp_path / "none"),
+            ]
+        )
     assert exit_info.value.code == 2
     assert "shipped checkpoint missing" in capsys.readouterr().err

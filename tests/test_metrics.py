@@ -91,8 +91,14 @@ def test_rejection_reference_reaches_targets_and_follows_the_prior():
 
 def test_rejection_reference_leaves_out_unreachable_targets():
     reference, complete, _ = rejection_reference(
-        PosePrior("uniform"), torch.tensor([[1.0, 0.0], [5.0, 0.0]]), torch.ones(2), count=5, radius=0.05,
-        generator=torch.Generator().manual_seed(0), chunk=2**12, max_draws=2**14,
+        PosePrior("uniform"),
+        torch.tensor([[1.0, 0.0], [5.0, 0.0]]),
+        torch.ones(2),
+        count=5,
+        radius=0.05,
+        generator=torch.Generator().manual_seed(0),
+        chunk=2**12,
+        max_draws=2**14,
     )
     assert complete.tolist() == [True, False] and reference.shape == (1, 5, 2)
 

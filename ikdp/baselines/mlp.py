@@ -34,7 +34,7 @@ class MLPRegressor(nn.Module):
         self.config = config
         self.register_buffer("lengths", lengths.float().clone())
         widths = [2] + [config.hidden] * config.layers
-        blocks = [module for a, b in zip(widths, widths[1:]) for module in (nn.Linear(a, b), nn.SiLU())]
+        blocks = [module for a, b in zip(widths, widths[1:], strict=False) for module in (nn.Linear(a, b), nn.SiLU())]
         self.net = nn.Sequential(*blocks, nn.Linear(config.hidden, 2 * config.num_links))
 
     def forward(self, targets: torch.Tensor) -> torch.Tensor:

@@ -68,7 +68,7 @@ class NeuralIK(nn.Module):
         self.register_buffer("lengths", lengths.float().clone())
         inputs = 7 + config.num_links
         widths = [inputs] + [config.hidden] * config.layers
-        blocks = [module for a, b in zip(widths, widths[1:]) for module in (nn.Linear(a, b), nn.SiLU())]
+        blocks = [module for a, b in zip(widths, widths[1:], strict=False) for module in (nn.Linear(a, b), nn.SiLU())]
         self.net = nn.Sequential(*blocks, nn.Linear(config.hidden, 4 * config.components))
 
     def features(self, targets: torch.Tensor, partial_tips: torch.Tensor, joint: torch.Tensor) -> torch.Tensor:

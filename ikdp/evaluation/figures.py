@@ -38,10 +38,10 @@ def reverse_process(results: dict, path: Path) -> Path:
     panels = results["reverse_process"]
     figure, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 4.2))
     axes = np.atleast_1d(axes)
-    for axis, (joints, panel) in zip(axes, panels.items()):
+    for axis, (joints, panel) in zip(axes, panels.items(), strict=False):
         trajectory = panel["trajectory"]
         colours = plt.cm.Blues(np.linspace(0.15, 1.0, len(trajectory)))
-        for index, (state, colour) in enumerate(zip(trajectory, colours)):
+        for index, (state, colour) in enumerate(zip(trajectory, colours, strict=False)):
             _arm(
                 axis,
                 state,
@@ -113,10 +113,10 @@ def training_curves(results: dict, path: Path) -> Path:
         ("train/tip_distance", "tip distance of the prediction"),
         ("eval/tip_error_median", "median tip error, DDPM K=1 (at saves)"),
     ]
-    for axis, (tag, title) in zip(axes, tags):
+    for axis, (tag, title) in zip(axes, tags, strict=False):
         for stem, scalars in curves.items():
             if scalars.get(tag):
-                steps, values = zip(*scalars[tag])
+                steps, values = zip(*scalars[tag], strict=False)
                 axis.plot(steps, values, label=stem, lw=1, marker="o" if tag.startswith("eval") else None, ms=3)
         axis.set_yscale("log")
         axis.set_xlabel("step")
@@ -136,7 +136,7 @@ def tip_error_cdf(results: dict, path: Path) -> Path:
     """Distribution of the tip error of one solution per target, per method, each arm (FK-of-uniform targets)."""
     arms = results["arms"]
     figure, axes = plt.subplots(1, len(arms), figsize=(5.5 * len(arms), 4.5), squeeze=False)
-    for axis, (joints, arm) in zip(axes[0], arms.items()):
+    for axis, (joints, arm) in zip(axes[0], arms.items(), strict=False):
         for index, (name, entry) in enumerate(arm["methods"].items()):
             quantiles = np.maximum(np.array(entry["fk_uniform"]["tip_error_quantiles"]), 1e-9)
             style = "-" if entry["family"] == "ikdp" else "--" if entry["family"] == "learned" else ":"

@@ -64,6 +64,16 @@ def dls_from_prior(prior: PosePrior, lengths: torch.Tensor, iterations: int = DL
     return solve
 
 
+def random_pose(lengths: torch.Tensor) -> Method:
+    """No solver at all: uniformly random headings. The floor every number above should beat."""
+
+    def solve(targets, num_samples, generator):
+        headings = (torch.rand(targets.shape[0], num_samples, lengths.shape[0], generator=generator) * 2 - 1) * torch.pi
+        return headings, (tip_position(headings, lengths) - targets[:, None]).norm(dim=-1)
+
+    return Method("Random pose (no solver)", "reference", solve, "uniform headings", several=False)
+
+
 def classical_methods(lengths: torch.Tensor) -> list[Method]:
     """DLS, CCD and FABRIK from uniformly random starts (one start per sample), and the N = 2 closed form."""
     methods = [

@@ -26,6 +26,7 @@ def tip_error_summary(tip_error: torch.Tensor, reach: float) -> dict[str, float]
     error = tip_error.flatten().double()
     summary = {
         "mean": float(error.mean()),
+        "sem": float(error.std() / len(error) ** 0.5) if len(error) > 1 else float("nan"),
         "median": float(error.median()),
         "p95": float(torch.quantile(error, 0.95)),
     }

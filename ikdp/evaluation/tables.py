@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import time
 
+from ikdp.evaluation import discussion
+
 PAPER_METHOD_ROWS = {"MLP": "MLP regression", "IKNet": "Neural IK (MDN)", "IKDP": "IKDP paper denoiser, DDPM"}
 
 
@@ -350,10 +352,16 @@ def figures_section(results: dict) -> str:
     )
 
 
-def render(results: dict, discussion: str = "") -> str:
-    parts = [header(results), table_one(results), table_two(results), table_three(results)]
-    if discussion:
-        parts.append(discussion)
+def render(results: dict) -> str:
+    parts = [
+        header(results),
+        table_one(results),
+        discussion.table_one(results),
+        table_two(results),
+        discussion.table_two(results),
+        table_three(results),
+        discussion.table_three(results),
+    ]
     parts += [accuracy_tables(results), diversity_tables(results), fidelity_tables(results)]
     if results["runtime"]["methods"]:
         parts.append(runtime_table(results))

@@ -7,10 +7,14 @@ holds every setting that shaped it, so a changed setting trains afresh.
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import time
 from dataclasses import fields, replace
 from pathlib import Path
 
 import torch
+from tqdm import tqdm
 
 import ikdp
 from ikdp.baselines.mlp import MLPConfig, mlp_from_state, mlp_state, train_mlp
@@ -33,7 +37,7 @@ def paper_training_settings(reference_checkpoint: Path | None) -> dict:
     return settings
 
 
-def cached_ikdp(
+def ikdp_training_config(
     cache_dir: Path,
     *,
     joints: int,
@@ -46,12 +50,9 @@ def cached_ikdp(
     prior: str = "uniform",
     hidden: int | None = None,
     tag: str = "paper",
-) -> Path:
-    """Train (once) an IKDP model with the given settings; returns its checkpoint path."""
+) -> TrainConfig:
+    """The TrainConfig of a cached IKDP model; its output file name holds every setting that shapes it."""
     stem = f"{tag}_n{joints}_T{timesteps}_{prior}_s{steps}_b{batch}_seed{seed}"
-    output = cache_dir / f"{stem}.pt"
-    if output.exists():
-        return output
     config = replace(
         TrainConfig(),
         **settings,
@@ -62,7 +63,7 @@ def cached_ikdp(
         seed=seed,
         threads=threads,
         prior=prior,
-        output=str(output),
+        output=str(cache_dir / f"{stem}.pt"),
         log_dir=str(cache_dir / "logs" / stem),
         eval_targets=0,
         save_every=10**9,
@@ -70,8 +71,64 @@ def cached_ikdp(
     )
     if hidden is not None:
         config = replace(config, hidden=hidden, blocks=1)
-    train(config)  # its own tqdm bar shows the progress
-    return output
+    return config
+
+
+def cached_ikdp(cache_dir: Path, **arguments) -> Path:
+    """Train (once, in this process) an IKDP model; returns its checkpoint path."""
+    config = ikdp_training_config(cache_dir, **arguments)
+    if not Path(config.output).exists():
+        train(config)  # its own tqdm bar shows the progress
+    return Path(config.output)
+
+
+def _command_line(config: TrainConfig) -> list[str]:
+    command = [sys.executable, "-m", "ikdp.train"]
+    for field in fields(TrainConfig):
+        value = getattr(config, field.name)
+        flag = "--" + field.name.replace("_", "-")
+        if isinstance(value, bool):
+            command.append(flag if value else "--no-" + field.name.replace("_", "-"))
+        elif isinstance(value, tuple):
+            command += [flag, *map(str, value)]
+        elif value is not None:
+            command += [flag, str(value)]
+    return command
+
+
+def train_in_parallel(configs: list[TrainConfig], workers: int) -> None:
+    """Train the configs whose output is missing, `workers` single-threaded `ikdp.train` processes at a time.
+
+    Small models use a second thread poorly; two processes of one thread each use both cores.
+    Each run's output goes to <output>.log beside its checkpoint.
+    """
+    if workers <= 1:  # in this process: no second interpreter to start (seconds each on a busy machine)
+        for config in tqdm(configs, desc="training IKDP variants", leave=False):
+            if not Path(config.output).exists():
+                train(config)
+        return
+    todo = [replace(config, threads=1) for config in configs if not Path(config.output).exists()]
+    running: list[tuple[subprocess.Popen, TrainConfig, object]] = []
+    progress = tqdm(total=len(todo), desc="training IKDP variants", leave=False)
+    while todo or running:
+        while todo and len(running) < max(1, workers):
+            config = todo.pop(0)
+            Path(config.output).parent.mkdir(parents=True, exist_ok=True)
+            log = open(f"{config.output}.log", "w")  # noqa: SIM115 (closed when the process ends)
+            running.append((subprocess.Popen(_command_line(config), stdout=log, stderr=subprocess.STDOUT), config, log))
+        time.sleep(0.5)
+        for entry in list(running):
+            process, config, log = entry
+            if process.poll() is None:
+                continue
+            log.close()
+            running.remove(entry)
+            progress.update()
+            if process.returncode != 0:
+                raise RuntimeError(
+                    f"training {config.output} failed (exit {process.returncode}); see {config.output}.log"
+                )
+    progress.close()
 
 
 def cached_baseline(
