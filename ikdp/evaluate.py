@@ -128,7 +128,10 @@ def load_ikdp(
     """A shipped checkpoint, or in a quick run a small stand-in trained where it is missing."""
     path = checkpoints / name
     if path.exists():
-        return ikdp.load(path), str(path)
+        solver = ikdp.load(path)
+        train = solver.metadata["train"]
+        state = "" if train.get("finished") else ", unfinished"
+        return solver, f"{path} (step {train.get('step')} of {train.get('steps')}{state})"
     if not sizes.standin_steps:
         raise FileNotFoundError(f"{path}: shipped checkpoint missing (train it first, or use --quick for stand-ins)")
     settings = (

@@ -23,7 +23,8 @@ def table_one(results: dict) -> str:
     lines = [
         "**Reading Table I.** "
         f"With the paper's denoiser at an equal, small training budget, the angle distance {angle_trend} with N "
-        f"({', '.join(_g(a) for a in angle)} rad), the opposite of the paper's ({', '.join(_g(paper[str(n)][0]) for n in joints if str(n) in paper)}): "
+        f"({', '.join(_g(a) for a in angle)} rad), the opposite of the paper's "
+        f"({', '.join(_g(paper[str(n)][0]) for n in joints if str(n) in paper)}): "
         "it is a norm over N wrapped differences against one ground-truth pose among a continuum of valid ones, so it "
         "must grow with N for any sampler that picks a different valid solution; the paper's falling numbers suggest a "
         "per-joint mean rather than a norm, which it does not say. "
@@ -33,10 +34,12 @@ def table_one(results: dict) -> str:
         "and its 8.03 at N=8 contradicts its own text; we cannot convert either. "
         "Our default denoiser (trained far longer, wrap-free (cos, sin) representation, FK-consistency loss) misses by "
         + ", ".join(
-            f"{_g(default[n]['target_distance']['mean'])} (median {_g(default[n]['target_distance']['median'])}) at N={n}"
+            f"{_g(default[n]['target_distance']['mean'])} "
+            f"(median {_g(default[n]['target_distance']['median'])}) at N={n}"
             for n in joints
         )
-        + " with the same one-sample, no-refinement protocol; a few DLS steps take most samples to 1e-3 R (Table III and the accuracy tables).",
+        + " with the same one-sample, no-refinement protocol; a few DLS steps take most samples to 1e-3 R "
+        "(Table III and the accuracy tables).",
     ]
     return "\n".join(lines) + "\n"
 
@@ -57,10 +60,12 @@ def table_two(results: dict) -> str:
     return (
         "**Reading Table II.** "
         f"Our lowest mean target distance is at T={best_t} ({_g(best['mean'])} bone lengths); the spread across T "
-        f"({_g(spread)}) is {significant} than twice the standard error of a mean ({_g(noise)}), and the best T {agree} "
+        f"({_g(spread)}) is {significant} than twice the standard error of a mean ({_g(noise)}), "
+        f"and the best T {agree} "
         f"the paper's (T={paper_best} by target distance, T=80 by angle distance). "
         "With our schedule the betas are rescaled by 1000/T, so every T spans the same total noise and T only sets how "
-        "finely the reverse process is cut; at a fixed small training budget that matters less than the budget itself.\n"
+        "finely the reverse process is cut; at a fixed small training budget that matters less than "
+        "the budget itself.\n"
     )
 
 

@@ -7,6 +7,7 @@ holds every setting that shaped it, so a changed setting trains afresh.
 
 from __future__ import annotations
 
+import hashlib
 import subprocess
 import sys
 import time
@@ -52,10 +53,9 @@ def ikdp_training_config(
     tag: str = "paper",
 ) -> TrainConfig:
     """The TrainConfig of a cached IKDP model; its output file name holds every setting that shapes it."""
-    stem = f"{tag}_n{joints}_T{timesteps}_{prior}_s{steps}_b{batch}_seed{seed}"
-    config = replace(
-        TrainConfig(),
-        **settings,
+    digest = hashlib.sha1(repr(sorted(settings.items())).encode()).hexdigest()[:6]  # the training settings
+    stem = f"{tag}_n{joints}_T{timesteps}_{prior}_s{steps}_b{batch}_seed{seed}_{digest}"
+    overrides = dict(
         joints=joints,
         timesteps=timesteps,
         steps=steps,
@@ -69,6 +69,7 @@ def ikdp_training_config(
         save_every=10**9,
         warmup=min(settings.get("warmup", 500), max(1, steps // 10)),
     )
+    config = replace(TrainConfig(), **{**settings, **overrides})
     if hidden is not None:
         config = replace(config, hidden=hidden, blocks=1)
     return config
