@@ -39,14 +39,17 @@ from ikdp.evaluation.methods import (
 from ikdp.evaluation.mmd import KERNEL_DESCRIPTION, mmd2
 from ikdp.evaluation.reference import rejection_reference, targets_from_prior, targets_in_disk
 from ikdp.evaluation.training import (
+    baseline_job,
     cached_baseline,
     cached_ikdp,
+    ikdp_job,
     ikdp_training_config,
     paper_training_settings,
-    train_in_parallel,
+    run_in_parallel,
 )
 from ikdp.priors import PosePrior
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
+from ikdp.train import train
 
 
 @dataclass(frozen=True)
@@ -214,10 +217,11 @@ def training_curves(checkpoints: Path, stems: list[str]) -> dict:
     return curves
 
 
-def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
+def evaluate(config: EvaluateConfig, argv: list[str] | None = None, sizes: Sizes | None = None) -> dict:
+    """Run everything and write the files; `sizes` overrides the quick/full sizes (for tests)."""
     torch.set_num_threads(config.threads)
     started = time.perf_counter()
-    sizes = QUICK if config.quick else FULL
+    sizes = sizes or (QUICK if config.quick else FULL)
     out_dir, cache, checkpoints = Path(config.out_dir), Path(config.cache_dir), Path(config.checkpoints)
     seed = config.seed
     command = "python -m ikdp.evaluate " + " ".join(
@@ -273,33 +277,34 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None) -> dict:
         )
         for n, t in variant_grid
     }
-    # largest first, so the two workers finish together
-    train_in_parallel(
-        sorted(variant_configs.values(), key=lambda c: -c.joints), workers=1 if config.quick else config.threads
-    )
+    uniform, relaxed_prior = PosePrior("uniform"), relaxed.prior
+    baseline_specs = [(kind, n, uniform) for n in sizes.joints for kind in ("mlp", "neural_ik")]
+    baseline_specs.append(("neural_ik", FIDELITY_JOINTS, relaxed_prior))
+    if not config.quick and config.threads > 1:
+        # everything trainable, in parallel single-threaded processes; the longest jobs (most joints) first
+        jobs = [ikdp_job(train_config) for train_config in variant_configs.values()]
+        jobs += [
+            baseline_job(
+                kind, cache, prior, torch.ones(n), steps=sizes.baseline_steps, batch=sizes.baseline_batch, seed=seed
+            )
+            for kind, n, prior in baseline_specs
+        ]
+        jobs.sort(key=lambda job: -int(job[0].name.split("_n")[1].split("_")[0]))
+        run_in_parallel(jobs, workers=config.threads)
+    for train_config in tqdm(variant_configs.values(), desc="paper-denoiser variants", leave=False):
+        if not Path(train_config.output).exists():
+            train(train_config)
     variants = {key: ikdp.load(train_config.output) for key, train_config in variant_configs.items()}
     results["variant_training"] = {
         "settings": paper_settings,
         "steps": sizes.variant_steps,
         "batch": sizes.variant_batch,
     }
-    uniform, relaxed_prior = PosePrior("uniform"), relaxed.prior
     baselines = {}
-    for n in tqdm(sizes.joints, desc="baselines", leave=False):
-        lengths = default[n].model.lengths.cpu()
-        for kind in ("mlp", "neural_ik"):
-            baselines[kind, n, "uniform"] = cached_baseline(
-                kind, cache, uniform, lengths, steps=sizes.baseline_steps, batch=sizes.baseline_batch, seed=seed
-            )
-    baselines["neural_ik", FIDELITY_JOINTS, "relaxed"] = cached_baseline(
-        "neural_ik",
-        cache,
-        relaxed_prior,
-        relaxed.model.lengths.cpu(),
-        steps=sizes.baseline_steps,
-        batch=sizes.baseline_batch,
-        seed=seed,
-    )
+    for kind, n, prior in tqdm(baseline_specs, desc="baselines", leave=False):
+        baselines[kind, n, prior.kind] = cached_baseline(
+            kind, cache, prior, torch.ones(n), steps=sizes.baseline_steps, batch=sizes.baseline_batch, seed=seed
+        )
     results["baseline_training"] = {
         "steps": sizes.baseline_steps,
         "batch": sizes.baseline_batch,

@@ -8,6 +8,7 @@ holds every setting that shaped it, so a changed setting trains afresh.
 from __future__ import annotations
 
 import hashlib
+import os
 import subprocess
 import sys
 import time
@@ -97,39 +98,62 @@ def _command_line(config: TrainConfig) -> list[str]:
     return command
 
 
-def train_in_parallel(configs: list[TrainConfig], workers: int) -> None:
-    """Train the configs whose output is missing, `workers` single-threaded `ikdp.train` processes at a time.
+def run_in_parallel(jobs: list[tuple[Path, list[str]]], workers: int) -> None:
+    """Run the (output, command) jobs whose output is missing, `workers` single-threaded processes at a time.
 
     Small models use a second thread poorly; two processes of one thread each use both cores.
-    Each run's output goes to <output>.log beside its checkpoint.
+    Each job's output goes to <output>.log beside its result.
     """
-    if workers <= 1:  # in this process: no second interpreter to start (seconds each on a busy machine)
-        for config in tqdm(configs, desc="training IKDP variants", leave=False):
-            if not Path(config.output).exists():
-                train(config)
-        return
-    todo = [replace(config, threads=1) for config in configs if not Path(config.output).exists()]
-    running: list[tuple[subprocess.Popen, TrainConfig, object]] = []
-    progress = tqdm(total=len(todo), desc="training IKDP variants", leave=False)
+    todo = [(Path(output), command) for output, command in jobs if not Path(output).exists()]
+    running: list = []
+    progress = tqdm(total=len(todo), desc=f"training ({workers} processes)", leave=False)
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
     while todo or running:
         while todo and len(running) < max(1, workers):
-            config = todo.pop(0)
-            Path(config.output).parent.mkdir(parents=True, exist_ok=True)
-            log = open(f"{config.output}.log", "w")  # noqa: SIM115 (closed when the process ends)
-            running.append((subprocess.Popen(_command_line(config), stdout=log, stderr=subprocess.STDOUT), config, log))
+            output, command = todo.pop(0)
+            output.parent.mkdir(parents=True, exist_ok=True)
+            log = open(f"{output}.log", "w")  # noqa: SIM115 (closed when the process ends)
+            process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment)
+            running.append((process, output, log))
         time.sleep(0.5)
         for entry in list(running):
-            process, config, log = entry
+            process, output, log = entry
             if process.poll() is None:
                 continue
             log.close()
             running.remove(entry)
             progress.update()
             if process.returncode != 0:
-                raise RuntimeError(
-                    f"training {config.output} failed (exit {process.returncode}); see {config.output}.log"
-                )
+                raise RuntimeError(f"training {output} failed (exit {process.returncode}); see {output}.log")
     progress.close()
+
+
+def ikdp_job(config: TrainConfig) -> tuple[Path, list[str]]:
+    return Path(config.output), _command_line(replace(config, threads=1))
+
+
+def baseline_path(kind: str, cache_dir: Path, prior: PosePrior, num_links: int, steps: int, batch: int, seed: int):
+    return Path(cache_dir) / f"{kind}_n{num_links}_{prior.kind}_s{steps}_b{batch}_seed{seed}.pt"
+
+
+def baseline_job(
+    kind: str, cache_dir: Path, prior: PosePrior, lengths: torch.Tensor, *, steps: int, batch: int, seed: int
+):
+    """A job for run_in_parallel that trains one baseline (uniform or relaxed prior) in its own process."""
+    if prior.kind not in ("uniform", "relaxed"):
+        raise ValueError(f"prior: baselines train in a separate process for uniform or relaxed, got {prior.kind!r}")
+    output = baseline_path(kind, cache_dir, prior, lengths.shape[0], steps, batch, seed)
+    command = [
+        sys.executable,
+        "-m",
+        "ikdp.evaluation.training",
+        kind,
+        str(cache_dir),
+        prior.kind,
+        repr(prior.relaxed_std),
+    ]
+    command += [str(steps), str(batch), str(seed), *map(repr, lengths.tolist())]
+    return output, command
 
 
 def cached_baseline(
@@ -137,7 +161,7 @@ def cached_baseline(
 ):
     """Train (once) the MLP or the Neural IK baseline on poses from `prior`; returns the model."""
     num_links = lengths.shape[0]
-    path = cache_dir / f"{kind}_n{num_links}_{prior.kind}_s{steps}_b{batch}_seed{seed}.pt"
+    path = baseline_path(kind, cache_dir, prior, num_links, steps, batch, seed)
     if path.exists():
         state = torch.load(path, weights_only=True)
         return mlp_from_state(state) if kind == "mlp" else neural_ik_from_state(state)
@@ -152,3 +176,19 @@ def cached_baseline(
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save(state, path)
     return model
+
+
+if (
+    __name__ == "__main__"
+):  # one baseline, for run_in_parallel: kind cache prior relaxed_std steps batch seed lengths...
+    kind, cache, prior_kind, relaxed_std, steps, batch, seed, *bone_lengths = sys.argv[1:]
+    torch.set_num_threads(1)
+    cached_baseline(
+        kind,
+        Path(cache),
+        PosePrior(kind=prior_kind, relaxed_std=float(relaxed_std)),
+        torch.tensor([float(length) for length in bone_lengths]),
+        steps=int(steps),
+        batch=int(batch),
+        seed=int(seed),
+    )
