@@ -71,7 +71,9 @@ def run_reverse_diffusion(
             if batch > 1:
                 condition = condition.repeat_interleave(num_samples, dim=0)
         output = denoiser.denoise(x, row_targets, condition)
-        clean = representation.project(schedule.predict_clean(output, t, x, prediction))
+        clean = schedule.predict_clean(output, t, x, prediction)
+        if not (prediction == "sample" and getattr(denoiser, "output_on_manifold", False)):
+            clean = representation.project(clean)
         if sampler == "ddpm":
             x = schedule.ddpm_step(clean, t, x, generator=generator)
         else:

@@ -50,6 +50,11 @@ class FiLMDenoiser(nn.Module):
         nn.init.zeros_(self.output.weight)  # start as the identity: predict x_0 = x_t
         nn.init.zeros_(self.output.bias)
 
+    @property
+    def output_on_manifold(self) -> bool:
+        """A turned unit pair is a unit pair: the sampler need not project this x_0 estimate again."""
+        return self.representation.kind == "cossin"
+
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """t: (M,), target: (M, 2) -> FiLM parameters (M, blocks, 2, hidden): scale and shift."""
         embedded = torch.cat((sinusoidal_embedding(t, self.config.time_dim), target / self.reach), dim=-1)
@@ -68,10 +73,11 @@ class FiLMDenoiser(nn.Module):
         bones = unit * self.lengths[:, None]  # (M, N, 2)
         miss = target - bones.sum(dim=-2)  # (M, 2): target - tip
         damped_gram = bones.transpose(-1, -2) @ bones + self.damping_identity  # (M, 2, 2)
-        turned_miss = (miss @ self.perpendicular).unsqueeze(-1)  # (M, 2, 1): R^T e
-        trace = damped_gram.diagonal(dim1=-2, dim2=-1).sum(-1)[:, None, None]
-        solved = (trace * turned_miss - damped_gram @ turned_miss) / torch.linalg.det(damped_gram)[:, None, None]
-        step = (bones @ solved).squeeze(-1)  # (M, N)
+        a, b, d = damped_gram[:, 0, 0], damped_gram[:, 0, 1], damped_gram[:, 1, 1]
+        turned_miss = miss @ self.perpendicular  # (M, 2): R^T e
+        # det and trace by hand: torch.linalg.det costs more than the rest of the step's algebra
+        solved = ((a + d)[:, None] * turned_miss - (damped_gram @ turned_miss[..., None])[..., 0]) / (a * d - b * b)[:, None]
+        step = (bones @ solved[..., None])[..., 0]  # (M, N)
         return torch.cat((x, miss, step), dim=-1) * self.feature_scale
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
