@@ -31,7 +31,10 @@ VARIANTS = {
     "film, epsilon prediction": {"prediction": "epsilon"},
     "film, paper loss (no tip term, uniform t weights)": {"tip_loss_weight": 0.0, "snr_gamma": 0.0},
     "paper transformer, paper loss, raw angle": {
-        "denoiser": "paper", "representation": "angle", "tip_loss_weight": 0.0, "snr_gamma": 0.0,
+        "denoiser": "paper",
+        "representation": "angle",
+        "tip_loss_weight": 0.0,
+        "snr_gamma": 0.0,
     },
     "paper transformer, our loss, cossin": {"denoiser": "paper"},
 }
@@ -62,22 +65,40 @@ def main() -> None:
             checkpoint = train(config)
             seconds = time.perf_counter() - started
             error = tip_errors(checkpoint, targets)
-            rows.append({
-                "variant": name, "changes": changes, "train_seconds": round(seconds, 1),
-                "tip_error_median": float(error.median()), "tip_error_mean": float(error.mean()),
-                "tip_error_p95": float(error.quantile(0.95)),
-            })
+            rows.append(
+                {
+                    "variant": name,
+                    "changes": changes,
+                    "train_seconds": round(seconds, 1),
+                    "tip_error_median": float(error.median()),
+                    "tip_error_mean": float(error.mean()),
+                    "tip_error_p95": float(error.quantile(0.95)),
+                }
+            )
     print(f"\nN=4, {args.steps} steps x {args.batch} poses, raw DDPM-80, K=1, {args.targets} targets (bone lengths)\n")
     print("| variant | median | mean | p95 | train s |\n|---|---|---|---|---|")
     for row in rows:
-        print(f"| {row['variant']} | {row['tip_error_median']:.4f} | {row['tip_error_mean']:.4f} "
-              f"| {row['tip_error_p95']:.4f} | {row['train_seconds']:.0f} |")
+        print(
+            f"| {row['variant']} | {row['tip_error_median']:.4f} | {row['tip_error_mean']:.4f} "
+            f"| {row['tip_error_p95']:.4f} | {row['train_seconds']:.0f} |"
+        )
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps({
-        "steps": args.steps, "batch": args.batch, "targets": args.targets, "threads": 1,
-        "sampler": "ddpm-80 raw, K=1", "machine": platform.processor() or platform.machine(),
-        "torch": str(torch.__version__), "date": time.strftime("%Y-%m-%d"), "rows": rows,
-    }, indent=2))
+    args.output.write_text(
+        json.dumps(
+            {
+                "steps": args.steps,
+                "batch": args.batch,
+                "targets": args.targets,
+                "threads": 1,
+                "sampler": "ddpm-80 raw, K=1",
+                "machine": platform.processor() or platform.machine(),
+                "torch": str(torch.__version__),
+                "date": time.strftime("%Y-%m-%d"),
+                "rows": rows,
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@ from ikdp.kinematics import (
     tip_position,
     wrap_angle,
 )
-from ikdp.solver import SolveResult, Solver, load
+from ikdp.solver import Solver, SolveResult, load
 
 __all__ = [
     "CheckpointError",

@@ -55,14 +55,18 @@ def read_checkpoint(path: str | Path) -> dict:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as error:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else "unsafe content"
-        raise CheckpointError(f"{path}: refused, it holds pickled objects that are not plain data ({first_line})") from None
+        raise CheckpointError(
+            f"{path}: refused, it holds pickled objects that are not plain data ({first_line})"
+        ) from None
     except (RuntimeError, EOFError, OSError, zipfile.BadZipFile, KeyError) as error:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
         raise CheckpointError(f"{path}: unreadable or truncated checkpoint ({first_line})") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise CheckpointError(f"{path}: not an IKDP checkpoint (no '{FORMAT}' format tag)")
     if payload.get("version") != VERSION:
-        raise CheckpointError(f"{path}: checkpoint version {payload.get('version')!r}, this ikdp reads version {VERSION}")
+        raise CheckpointError(
+            f"{path}: checkpoint version {payload.get('version')!r}, this ikdp reads version {VERSION}"
+        )
     missing = [key for key in REQUIRED_KEYS if key not in payload]
     if missing:
         raise CheckpointError(f"{path}: incomplete checkpoint, missing {', '.join(missing)}")

@@ -43,8 +43,10 @@ def training_command(train: dict) -> str:
 
 
 def describe(paths: list[str]) -> str:
-    rows = ["| checkpoint | N | T | denoiser | representation | prior | steps | train time | median tip error at save |",
-            "|---|---|---|---|---|---|---|---|---|"]
+    rows = [
+        "| checkpoint | N | T | denoiser | representation | prior | steps | train time | median tip error at save |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     commands = []
     for path in paths:
         payload = read_checkpoint(path)
@@ -56,7 +58,8 @@ def describe(paths: list[str]) -> str:
             f"| {model['representation']} | {payload['prior']['kind']} | {train.get('step')} "
             f"| {minutes:.1f} min ({train.get('threads')} thread) "
             f"| {median:.4f} ({metrics.get('eval_targets')} targets, {metrics.get('sampler')}) |"
-            if median is not None else f"| `{path}` | ... |"
+            if median is not None
+            else f"| `{path}` | ... |"
         )
         commands.append(f"- `{path}`: `{training_command(train)}`")
     return "\n".join(rows) + "\n\nCommands:\n\n" + "\n".join(commands) + "\n"

@@ -95,7 +95,9 @@ def load_pose_file(path: str | Path, num_links: int) -> torch.Tensor:
     return torch.from_numpy(poses).float()
 
 
-def make_prior(kind: str, num_links: int, *, pose_file: str | None = None, relaxed_std: float = math.pi / 4) -> PosePrior:
+def make_prior(
+    kind: str, num_links: int, *, pose_file: str | None = None, relaxed_std: float = math.pi / 4
+) -> PosePrior:
     """Build a prior from a CLI word: uniform, relaxed, or a path to a pose file."""
     if kind in ("uniform", "relaxed"):
         return PosePrior(kind=kind, relaxed_std=relaxed_std)

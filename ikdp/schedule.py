@@ -29,7 +29,9 @@ def make_betas(config: ScheduleConfig) -> torch.Tensor:
     steps = config.timesteps
     if config.kind == "linear":
         scale = 1000 / steps  # keeps the total noise of DDPM's T=1000 schedule at any T
-        return torch.linspace(scale * config.beta_start, scale * config.beta_end, steps, dtype=torch.float64).clamp(max=0.999)
+        return torch.linspace(scale * config.beta_start, scale * config.beta_end, steps, dtype=torch.float64).clamp(
+            max=0.999
+        )
     s = 0.008
     x = torch.linspace(0, steps, steps + 1, dtype=torch.float64)
     alphas_cumprod = torch.cos(((x / steps) + s) / (1 + s) * math.pi / 2) ** 2

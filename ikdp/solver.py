@@ -1,7 +1,7 @@
 """The public solver: load a checkpoint, solve IK for a batch of targets.
 
-    solver = ikdp.load("checkpoints/ikdp_n4.pt")
-    out = solver.solve(targets, num_samples=16)
+solver = ikdp.load("checkpoints/ikdp_n4.pt")
+out = solver.solve(targets, num_samples=16)
 """
 
 from __future__ import annotations

@@ -170,7 +170,9 @@ def train(config: TrainConfig) -> Path:
                 writer.add_scalar("train/theta_loss", float(losses["theta_loss"]), step)
                 writer.add_scalar("train/tip_distance", float(losses["tip_distance"]), step)
                 writer.add_scalar("train/lr", scheduler.get_last_lr()[0], step)
-                progress.set_postfix(loss=f"{float(losses['theta_loss']):.4f}", tip=f"{float(losses['tip_distance']):.4f}")
+                progress.set_postfix(
+                    loss=f"{float(losses['theta_loss']):.4f}", tip=f"{float(losses['tip_distance']):.4f}"
+                )
             progress.update(1)
             if step % config.save_every == 0 and step < config.steps:
                 save(final=False)
@@ -180,7 +182,10 @@ def train(config: TrainConfig) -> Path:
     save(final=not interrupted)
     writer.close()
     state = "interrupted, resumable with --resume" if interrupted else "done"
-    print(f"{output}: {state} at step {step}; median tip error {metrics.get('tip_error_median', float('nan')):.4g}", file=sys.stderr)
+    print(
+        f"{output}: {state} at step {step}; median tip error {metrics.get('tip_error_median', float('nan')):.4g}",
+        file=sys.stderr,
+    )
     if interrupted:
         raise SystemExit(130)
     return output

@@ -16,8 +16,17 @@ def tiny_checkpoint(tmp_path_factory):
     """A 3-link model trained for a few steps: loadable, not accurate."""
     folder = tmp_path_factory.mktemp("tiny")
     config = TrainConfig(
-        joints=3, steps=30, batch=64, hidden=32, blocks=1, timesteps=20, eval_targets=20, save_every=1000,
-        output=str(folder / "tiny.pt"), log_dir=str(folder / "tb"), threads=1,
+        joints=3,
+        steps=30,
+        batch=64,
+        hidden=32,
+        blocks=1,
+        timesteps=20,
+        eval_targets=20,
+        save_every=1000,
+        output=str(folder / "tiny.pt"),
+        log_dir=str(folder / "tb"),
+        threads=1,
     )
     torch.manual_seed(0)
     return train(config)

@@ -57,7 +57,6 @@ def test_pickled_code_never_runs(tmp_path, monkeypatch):
     with pytest.raises(ikdp.CheckpointError, match="refused"):
         ikdp.load(path)
     assert not (tmp_path / "pwned_by_checkpoint").exists()
-    assert pickle  # the module the attack relies on is the one torch.load(weights_only=True) restricts
 
 
 def test_other_version_is_refused(tiny_checkpoint, tmp_path):
@@ -83,11 +82,8 @@ def test_save_is_atomic(tmp_path):
     save_checkpoint(path, {"model": {}, "prior": {}, "train": {}, "metrics": {}, "state_dict": {}})
     before = path.read_bytes()
 
-    class Unsaveable:
-        pass
-
-    with pytest.raises(Exception):
-        save_checkpoint(path, {"model": Unsaveable().__init__})  # torch.save cannot write a method-wrapper
+    with pytest.raises((pickle.PicklingError, AttributeError, TypeError)):
+        save_checkpoint(path, {"model": lambda: None})  # a lambda cannot be pickled: the write fails midway
     assert path.read_bytes() == before  # the old checkpoint survives a failed write
     assert [p.name for p in tmp_path.iterdir()] == ["model.pt"]  # no temp file left behind
     assert read_checkpoint(path)["format"] == "ikdp-checkpoint"

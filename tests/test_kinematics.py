@@ -63,4 +63,6 @@ def test_reach_and_projection():
     assert reach([1, 1, 1, 1]) == (0.0, 4.0)
     assert reach([3, 1]) == (2.0, 4.0)
     projected = project_to_workspace(torch.tensor([[10.0, 0.0], [0.5, 0.0], [1.0, 1.0]]), [3.0, 1.0])
-    torch.testing.assert_close(projected, torch.tensor([[4.0, 0.0], [2.0, 0.0], [1.0, 1.0]]) * torch.tensor([[1.0], [1.0], [2 / math.sqrt(2)]]))
+    torch.testing.assert_close(
+        projected, torch.tensor([[4.0, 0.0], [2.0, 0.0], [1.0, 1.0]]) * torch.tensor([[1.0], [1.0], [2 / math.sqrt(2)]])
+    )

@@ -54,8 +54,10 @@ def test_turn_adds_to_the_headings(kind):
 @pytest.mark.parametrize("representation", ["angle", "cossin"])
 def test_sample_shapes(denoiser, representation):
     config = ModelConfig(
-        lengths=(1.0,) * 3, representation=representation,
-        schedule=ScheduleConfig(timesteps=10), denoiser=DenoiserConfig(kind=denoiser, hidden=16, model_dim=16),
+        lengths=(1.0,) * 3,
+        representation=representation,
+        schedule=ScheduleConfig(timesteps=10),
+        denoiser=DenoiserConfig(kind=denoiser, hidden=16, model_dim=16),
     )
     model = IKDiffusion(config).eval()
     result = model.sample(torch.tensor([[1.0, 1.0], [0.0, -2.0]]), num_samples=5, return_trajectory=True)
@@ -100,7 +102,8 @@ def test_ddpm_refuses_a_step_count():
 def test_loss_goes_down(denoiser):
     torch.manual_seed(0)
     config = ModelConfig(
-        lengths=(1.0, 1.0), schedule=ScheduleConfig(timesteps=20),
+        lengths=(1.0, 1.0),
+        schedule=ScheduleConfig(timesteps=20),
         denoiser=DenoiserConfig(kind=denoiser, hidden=64, model_dim=32, mlp_hidden=64, layers=1),
     )
     model = IKDiffusion(config)

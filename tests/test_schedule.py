@@ -71,7 +71,7 @@ def test_ddim_timesteps():
     assert schedule.ddim_timesteps(None) == list(range(79, -1, -1))
     strided = schedule.ddim_timesteps(20)
     assert len(strided) == 20 and strided[0] == 79 and strided[-1] == 0
-    assert all(a > b for a, b in zip(strided, strided[1:]))
+    assert all(a > b for a, b in zip(strided, strided[1:], strict=False))
 
 
 @pytest.mark.parametrize(

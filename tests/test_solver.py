@@ -20,7 +20,9 @@ def test_solve_shapes_and_metadata(tiny_checkpoint):
     assert out.angles.shape == (2, 4, 3) and out.tip_error.shape == (2, 4)
     assert out.trajectory.shape == (21, 2, 4, 3)
     assert (out.angles > -math.pi).all() and (out.angles <= math.pi).all()
-    expected = (tip_position(out.angles, solver.model.lengths) - torch.tensor([[1.0, 0.5], [0.0, -2.0]])[:, None]).norm(dim=-1)
+    expected = (tip_position(out.angles, solver.model.lengths) - torch.tensor([[1.0, 0.5], [0.0, -2.0]])[:, None]).norm(
+        dim=-1
+    )
     torch.testing.assert_close(out.tip_error, expected, atol=1e-5, rtol=0)
     assert out.reachable.tolist() == [True, True]
     assert solver.solve([0.5, 0.5], num_samples=1).angles.shape == (1, 1, 3)  # a single (2,) target

@@ -15,8 +15,17 @@ from ikdp.train import TrainConfig, train
 
 def small_config(tmp_path, **changes):
     values = dict(
-        joints=2, steps=20, batch=32, hidden=16, blocks=1, timesteps=10, eval_targets=10, save_every=10,
-        output=str(tmp_path / "model.pt"), log_dir=str(tmp_path / "tb"), threads=1,
+        joints=2,
+        steps=20,
+        batch=32,
+        hidden=16,
+        blocks=1,
+        timesteps=10,
+        eval_targets=10,
+        save_every=10,
+        output=str(tmp_path / "model.pt"),
+        log_dir=str(tmp_path / "tb"),
+        threads=1,
     )
     values.update(changes)
     return TrainConfig(**values)
@@ -53,8 +62,21 @@ def test_cli_is_generated_from_the_dataclass():
 
 def test_cli_bad_option_exits_with_a_message(tmp_path):
     result = subprocess.run(
-        [sys.executable, "-m", "ikdp.train", "--joints", "2", "--lengths", "1", "1", "1", "--output", str(tmp_path / "x.pt")],
-        capture_output=True, text=True,
+        [
+            sys.executable,
+            "-m",
+            "ikdp.train",
+            "--joints",
+            "2",
+            "--lengths",
+            "1",
+            "1",
+            "1",
+            "--output",
+            str(tmp_path / "x.pt"),
+        ],
+        capture_output=True,
+        text=True,
     )
     assert result.returncode == 2
     assert "lengths" in result.stderr and "Traceback" not in result.stderr
@@ -63,9 +85,31 @@ def test_cli_bad_option_exits_with_a_message(tmp_path):
 def test_interrupted_training_leaves_a_loadable_checkpoint(tmp_path):
     output = tmp_path / "model.pt"
     command = [
-        sys.executable, "-m", "ikdp.train", "--joints", "2", "--steps", "1000000", "--batch", "16", "--hidden", "16",
-        "--blocks", "1", "--timesteps", "10", "--eval-targets", "5", "--threads", "1", "--save-every", "5",
-        "--output", str(output), "--log-dir", str(tmp_path / "tb"),
+        sys.executable,
+        "-m",
+        "ikdp.train",
+        "--joints",
+        "2",
+        "--steps",
+        "1000000",
+        "--batch",
+        "16",
+        "--hidden",
+        "16",
+        "--blocks",
+        "1",
+        "--timesteps",
+        "10",
+        "--eval-targets",
+        "5",
+        "--threads",
+        "1",
+        "--save-every",
+        "5",
+        "--output",
+        str(output),
+        "--log-dir",
+        str(tmp_path / "tb"),
     ]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
@@ -89,7 +133,9 @@ def test_priors(tmp_path):
     np.save(tmp_path / "poses.npy", poses)
     prior = make_prior(str(tmp_path / "poses.npy"), 3)
     drawn = ikdp.absolute_to_relative(prior.sample(50, 3, generator=generator))
-    assert all(any(torch.allclose(row, torch.tensor(p, dtype=torch.float32), atol=1e-5) for p in poses) for row in drawn)
+    assert all(
+        any(torch.allclose(row, torch.tensor(p, dtype=torch.float32), atol=1e-5) for p in poses) for row in drawn
+    )
 
 
 @pytest.mark.parametrize(

@@ -76,7 +76,9 @@ class FiLMDenoiser(nn.Module):
         a, b, d = damped_gram[:, 0, 0], damped_gram[:, 0, 1], damped_gram[:, 1, 1]
         turned_miss = miss @ self.perpendicular  # (M, 2): R^T e
         # det and trace by hand: torch.linalg.det costs more than the rest of the step's algebra
-        solved = ((a + d)[:, None] * turned_miss - (damped_gram @ turned_miss[..., None])[..., 0]) / (a * d - b * b)[:, None]
+        solved = ((a + d)[:, None] * turned_miss - (damped_gram @ turned_miss[..., None])[..., 0]) / (a * d - b * b)[
+            :, None
+        ]
         step = (bones @ solved[..., None])[..., 0]  # (M, N)
         return torch.cat((x, miss, step), dim=-1) * self.feature_scale
 

@@ -30,7 +30,9 @@ class PaperDenoiser(nn.Module):
         def layer_kwargs():
             return dict(d_model=width, nhead=config.heads, dim_feedforward=2 * width, dropout=0.0, batch_first=True)
 
-        self.encoder = nn.TransformerEncoder(nn.TransformerEncoderLayer(**layer_kwargs()), config.layers, enable_nested_tensor=False)
+        self.encoder = nn.TransformerEncoder(
+            nn.TransformerEncoderLayer(**layer_kwargs()), config.layers, enable_nested_tensor=False
+        )
         self.decoder = nn.TransformerDecoder(nn.TransformerDecoderLayer(**layer_kwargs()), config.layers)
         # "the target (t_x, t_y) is added to the time embedding"
         self.time_mlp = nn.Sequential(nn.Linear(config.time_dim, config.time_dim), nn.SiLU())
