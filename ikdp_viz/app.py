@@ -1,0 +1,702 @@
+"""IKDP viewer: the reverse diffusion of a planar arm, live in the browser.
+
+Drag the red cross. For each new target the app runs the reverse diffusion on a
+worker thread (the newest target wins) and draws it as the paper's Fig. "vis":
+every intermediate pose a thin line from faint (pure noise, t = T) to dark
+(t = 0), the current pose solid; then it plays the denoising from t = T to 0.
+
+Only handles and arrays live here: `scene.py` builds every array, `meshes.py`
+the geometry, and the solving is `ikdp`'s public API.
+"""
+
+from __future__ import annotations
+
+import collections
+import random
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import viser
+import viser.uplot
+
+import ikdp
+from ikdp_viz import meshes
+from ikdp_viz.player import Player
+from ikdp_viz.scene import (
+    REFINED,
+    TIP_DARK,
+    TIP_FAINT,
+    SolveView,
+    arm_placement,
+    build_view,
+    circle_segments,
+    clamp_to_workspace,
+    error_curves,
+    fade_colors,
+    nearest_state,
+    polyline_segments,
+    sample_colors,
+    trail_colors,
+    trail_points,
+    trail_until,
+)
+from ikdp_viz.solve_worker import LatestWorker
+
+MAX_SAMPLES = 64
+DEFAULT_DDIM_STEPS = 20
+TARGET_RED = (220, 25, 25)
+LINE_PIXELS = 1.5  # trail line thickness, screen pixels
+
+
+def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
+    """Dropdown label -> path for every `.pt` in `folder`, plus `extra` (labelled by its path) if elsewhere."""
+    found = {path.name: path for path in sorted(Path(folder).glob("*.pt"))} if Path(folder).is_dir() else {}
+    if extra is not None and Path(extra).resolve() not in {path.resolve() for path in found.values()}:
+        found[str(extra)] = Path(extra)
+    return found
+
+
+@dataclass(frozen=True)
+class SolveRequest:
+    """One solve, with the panel's settings as they were when it was asked for."""
+
+    solver: ikdp.Solver
+    target: np.ndarray  # (2,) inside the workspace
+    num_samples: int
+    sampler: str  # "ddpm" or "ddim"
+    steps: int | None  # DDIM steps; None for DDPM
+    refine_steps: int  # 0: no damped-least-squares polish
+    seed: int
+    arrival: float  # time.perf_counter() when the move (or settings change) arrived
+
+
+@dataclass(frozen=True)
+class Solved:
+    request: SolveRequest
+    view: SolveView
+    trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
+    solve_seconds: float  # solver.solve alone
+
+
+def solve(request: SolveRequest) -> Solved:
+    """Run the reverse diffusion for one request and build its drawable arrays (worker thread)."""
+    generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
+    started = time.perf_counter()
+    result = request.solver.solve(
+        request.target,
+        num_samples=request.num_samples,
+        sampler=request.sampler,
+        steps=request.steps,
+        refine_steps=request.refine_steps,
+        generator=generator,
+        return_trajectory=True,
+    )
+    solve_seconds = time.perf_counter() - started
+    view = build_view(result, request.solver.lengths, request.target)
+    return Solved(request, view, trail_points(view.joints), solve_seconds)
+
+
+class VizApp:
+    """The scene and panel of one viser server; every browser tab sees the same."""
+
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        solver: ikdp.Solver,
+        *,
+        checkpoints: dict[str, Path] | None = None,
+        checkpoint_folder: Path | None = None,
+        target: tuple[float, float] | None = None,
+        solve_now: bool = True,
+        animation_seconds: float = 1.0,
+    ):
+        self.server = server
+        self.solver = solver
+        self.checkpoint_folder = checkpoint_folder
+        self.checkpoints = dict(checkpoints or {"model": Path(solver.metadata.get("path", "model"))})
+        self.worker = LatestWorker()
+        self.player = Player(self._draw_from_player)
+        self._lock = threading.RLock()  # guards what is drawn; held while a frame is written
+        self._syncing = False  # True while the app itself moves the timestep slider
+        self.solved: Solved | None = None  # the solve on screen
+        self.state = 0  # index of the state on screen
+        self.target, self.target_clamped = self._initial_target(target), False
+        self.last_seed = 0
+        self.error: str | None = None  # the last solve's failure, shown in the panel
+        self.latencies: collections.deque[tuple[float, float]] = collections.deque(maxlen=100_000)
+        self._arm_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
+        self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
+        self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
+        self._build_gui(animation_seconds)
+        # No environment map: its reflections wash dark materials out to grey; the default lights stay.
+        server.scene.configure_environment_map(hdri=None)
+        self._build_scene()
+        server.on_client_connect(lambda client: self.refresh_checkpoints())
+        if solve_now:
+            self.move_target(self.target)
+
+    # ---------------------------------------------------------------- requests
+
+    def move_target(self, point, *, arrival: float | None = None, from_gizmo: bool = False) -> int | None:
+        """Clamp `point` to the workspace, move the cross there and ask for its solve; returns the ticket."""
+        arrival = time.perf_counter() if arrival is None else arrival
+        inner, outer = self.solver.reach
+        target, clamped = clamp_to_workspace(point, inner, outer)
+        unchanged = np.array_equal(target, self.target)
+        self.target, self.target_clamped = target, clamped
+        if clamped or not from_gizmo:
+            self.gizmo.position = (float(target[0]), float(target[1]), 0.0)
+        self._write_target_text()
+        if unchanged and from_gizmo:
+            return None  # the drag ended where the last update left it
+        return self.request_solve(arrival)
+
+    def request_solve(self, arrival: float | None = None) -> int:
+        """Solve the current target with the panel's settings, replacing any solve not yet started."""
+        if self.new_seed.value:
+            self.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
+        sampler = "ddim" if self.sampler.value == "DDIM" else "ddpm"
+        request = SolveRequest(
+            solver=self.solver,
+            target=self.target.copy(),
+            num_samples=int(self.samples.value),
+            sampler=sampler,
+            steps=int(self.ddim_steps.value) if sampler == "ddim" else None,
+            refine_steps=int(self.refine_steps.value) if self.refine.value else 0,
+            seed=int(self.seed.value),
+            arrival=time.perf_counter() if arrival is None else arrival,
+        )
+        return self.worker.submit(lambda: solve(request), self._show_solved, self._show_error)
+
+    async def on_gizmo_update(self, event: viser.TransformControlsEvent) -> None:
+        """Gizmo callback. Async so viser runs it on its event loop in arrival order; it only queues work."""
+        if event.phase == "start":
+            return
+        x, y = event.target.position[:2]
+        self.move_target((x, y), arrival=time.perf_counter(), from_gizmo=True)
+
+    def wait_until_still(self, timeout: float = 30.0) -> bool:
+        """Block until no solve is waiting or running and the animation has stopped (for tests and scripts)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.worker.wait_idle(max(0.0, deadline - time.monotonic())) and not self.player.playing:
+                with self._lock:  # a frame in progress finishes first
+                    if self.worker.idle and not self.player.playing:
+                        return True
+            time.sleep(0.005)
+        return False
+
+    def close(self) -> None:
+        self.player.close()
+        self.worker.close()
+
+    # ---------------------------------------------------------------- drawing
+
+    def _show_solved(self, ticket: int, solved: Solved) -> None:
+        """Worker thread: put a finished solve on screen and start its animation."""
+        self.player.pause()  # returns between frames: no frame of the old solve follows
+        with self._lock:
+            self.solved, self.error = solved, None
+            self._recolor()
+            self._ensure_arm_nodes()
+            self._write_plot_scales()
+            self._write_refined()
+            last = solved.view.num_states - 1
+            animate = self.play_on_move.value and self.duration.value > 0 and last > 0
+            self._draw_state(0 if animate else last)
+            self.latencies.append((solved.request.arrival, time.perf_counter()))
+        if animate:
+            self.player.play(0, last, self.duration.value / last, first_shown=True)
+            self._write_play_label()
+
+    def _show_error(self, ticket: int, error: BaseException) -> None:
+        self.error = f"{type(error).__name__}: {error}"
+        self._write_readouts()
+
+    def _draw_from_player(self, state: int) -> None:
+        with self._lock:
+            self._draw_state(state)
+
+    def show_state(self, state: int) -> None:
+        """Put state `state` (0 = pure noise .. S = final) on screen."""
+        with self._lock:
+            self._draw_state(state)
+
+    def _draw_state(self, state: int) -> None:
+        """Write one frame: the trail up to `state`, the arms at `state`, the readouts. Caller holds the lock."""
+        solved = self.solved
+        if solved is None:
+            return
+        view = solved.view
+        last = view.num_states - 1
+        state = int(np.clip(state, 0, last))
+        self.state = state
+        highlight = self.highlight_index()
+        num_samples, num_links = view.num_samples, view.num_links
+        placement = arm_placement(view.joints[state], view.lengths, raised=highlight, lift=2 * self.sizes.joint)
+        colors = self._colors[state]  # (K, 3)
+        tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
+        with self.server.atomic():
+            if self.show_trail.value and state > 0:
+                points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
+                self.trail.points = points
+                self.trail.colors = segment_colors
+                self.trail.visible = True
+            else:
+                self.trail.visible = False
+            self.links.batched_positions = placement.link_positions
+            self.links.batched_wxyzs = placement.link_wxyzs
+            self.links.batched_scales = placement.link_scales
+            self.links.batched_colors = np.repeat(colors, num_links, axis=0)
+            self.joints.batched_positions = placement.joint_positions
+            self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
+            self.tips.batched_positions = placement.tip_positions
+            self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
+            for node in (self.links, self.joints, self.tips):
+                node.visible = True
+            final_shown = state == last and view.refined
+            self.refined_lines.visible = final_shown
+            self.refined_tips.visible = final_shown
+            self._syncing = True
+            try:
+                self.timestep.value = int(view.labels[state])
+            finally:
+                self._syncing = False
+            self.plot.data = error_curves(view, highlight, state)
+            self._write_readouts()
+            self._write_play_label()
+
+    def _recolor(self) -> None:
+        view = self.solved.view
+        self._colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
+        self._trail_colors = trail_colors(self._colors, view.num_links)
+
+    def highlight_index(self) -> int:
+        view = self.solved.view if self.solved is not None else None
+        if view is None:
+            return 0
+        if self.highlight.value == "best":
+            return view.best_sample()
+        return min(int(self.highlight.value), view.num_samples - 1)
+
+    # ---------------------------------------------------------------- scene
+
+    def _initial_target(self, target) -> np.ndarray:
+        inner, outer = self.solver.reach
+        point = np.array(target if target is not None else (0.55 * outer, 0.3 * outer), dtype=np.float64)
+        return clamp_to_workspace(point, inner, outer)[0]
+
+    def _build_scene(self) -> None:
+        """Grid, workspace boundary, base and the target's gizmo, sized to the current arm."""
+        scene = self.server.scene
+        for handle in getattr(self, "_static_nodes", ()):
+            handle.remove()
+        lengths = self.solver.lengths
+        self.sizes = meshes.ArmSizes.for_lengths(lengths)
+        inner, outer = self.solver.reach
+        unit = float(np.mean(lengths))
+        extent = 2 * float(np.ceil((outer + unit) / unit)) * unit
+        nodes = [
+            scene.add_grid(
+                "/grid",
+                width=extent,
+                height=extent,
+                plane="xy",
+                cell_size=unit / 4,
+                section_size=unit,
+                cell_color=(236, 236, 236),
+                section_color=(212, 212, 212),
+                position=(0.0, 0.0, -0.02 * unit),
+                shadow_opacity=0.0,
+            )
+        ]
+        for name, radius in (("outer", outer), ("inner", inner)):
+            if radius > 0:
+                nodes.append(
+                    scene.add_line_segments(
+                        f"/workspace/{name}",
+                        circle_segments(radius, z=-0.01 * unit),
+                        colors=(150, 150, 150),
+                        thickness=LINE_PIXELS,
+                        thickness_units="screen",
+                    )
+                )
+        base = meshes.base_mesh(self.sizes.base)
+        nodes.append(
+            scene.add_mesh_simple(
+                "/base", base.vertices, base.faces, color=(90, 90, 90), cast_shadow=False, receive_shadow=False
+            )
+        )
+        self.gizmo = scene.add_transform_controls(
+            "/target",
+            scale=0.7 * unit,
+            active_axes=(True, True, False),
+            disable_rotations=True,
+            translation_limits=((-outer, outer), (-outer, outer), (0.0, 0.0)),
+            depth_test=False,
+            position=(float(self.target[0]), float(self.target[1]), 0.0),
+        )
+        self.gizmo.on_update(self.on_gizmo_update)
+        cross = meshes.cross_mesh(self.sizes.cross)
+        self.cross = scene.add_mesh_simple(
+            "/target/cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False
+        )
+        self._static_nodes = [*nodes, self.gizmo]
+        # Seen from straight above, +x to the right and +y up (a hair off the pole so "up" is defined),
+        # the workspace a little left of centre, clear of the panel on the right.
+        distance, shift = 1.55 * outer, 0.25 * outer
+        self.server.initial_camera.position = (shift, -1e-3 * distance, distance)
+        self.server.initial_camera.look_at = (shift, 0.0, 0.0)
+
+    def _ensure_arm_nodes(self) -> None:
+        """(Re)create the arm's nodes when K or N changed: a batched node keeps its instance count."""
+        view = self.solved.view
+        shape = (view.num_samples, view.num_links)
+        if shape == self._arm_shape:
+            return
+        scene = self.server.scene
+        num_samples, num_links = shape
+        links, joints, tips = (instances * num_samples for instances in (num_links, num_links + 1, 1))
+        identity = lambda count: np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))  # noqa: E731
+        origin = lambda count: np.zeros((count, 3))  # noqa: E731
+        options = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
+        link, joint, tip = (
+            meshes.link_mesh(self.sizes.link),
+            meshes.sphere_mesh(self.sizes.joint),
+            meshes.sphere_mesh(self.sizes.tip, 1),
+        )
+        self.trail = scene.add_line_segments(
+            "/arm/trail",
+            np.zeros((1, 2, 3)),
+            colors=(255, 255, 255),
+            thickness=LINE_PIXELS,
+            thickness_units="screen",
+            visible=False,
+        )
+        self.links = scene.add_batched_meshes_simple(
+            "/arm/links",
+            link.vertices,
+            link.faces,
+            identity(links),
+            origin(links),
+            batched_scales=np.ones((links, 3)),
+            batched_colors=np.zeros((links, 3), np.uint8),
+            **options,
+        )
+        self.joints = scene.add_batched_meshes_simple(
+            "/arm/joints",
+            joint.vertices,
+            joint.faces,
+            identity(joints),
+            origin(joints),
+            batched_colors=np.zeros((joints, 3), np.uint8),
+            **options,
+        )
+        self.tips = scene.add_batched_meshes_simple(
+            "/arm/tips",
+            tip.vertices,
+            tip.faces,
+            identity(tips),
+            origin(tips),
+            batched_colors=np.zeros((tips, 3), np.uint8),
+            **options,
+        )
+        self.refined_lines = scene.add_line_segments(
+            "/arm/refined",
+            np.zeros((1, 2, 3)),
+            colors=REFINED,
+            thickness=3 * LINE_PIXELS,
+            thickness_units="screen",
+            visible=False,
+        )
+        self.refined_tips = scene.add_batched_meshes_simple(
+            "/arm/refined_tips",
+            tip.vertices,
+            tip.faces,
+            identity(num_samples),
+            origin(num_samples),
+            batched_colors=np.broadcast_to(np.array(REFINED, np.uint8), (num_samples, 3)),
+            **options,
+        )
+        self._arm_shape = shape
+
+    def _write_refined(self) -> None:
+        view = self.solved.view
+        lift = 4 * self.sizes.joint  # above the arms
+        self.refined_lines.points = polyline_segments(view.final_joints, z=lift)
+        self.refined_lines.colors = np.broadcast_to(
+            np.array(REFINED, np.uint8), (view.num_samples * view.num_links, 2, 3)
+        )
+        tips = np.concatenate((view.final_joints[:, -1], np.full((view.num_samples, 1), lift)), axis=-1)
+        self.refined_tips.batched_positions = tips
+
+    # ---------------------------------------------------------------- panel
+
+    def _build_gui(self, animation_seconds: float) -> None:
+        gui = self.server.gui
+        num_timesteps = self.solver.timesteps
+        with gui.add_folder("Target"):
+            self.target_text = gui.add_markdown("")
+        with gui.add_folder("Denoising"):
+            self.timestep = gui.add_slider(
+                "timestep t",
+                min=0,
+                max=num_timesteps,
+                step=1,
+                initial_value=num_timesteps,
+                hint="Diffusion time of the pose shown: T is pure noise, 0 the final pose",
+            )
+            self.previous_button = gui.add_button("Previous step (toward noise)", icon=viser.Icon.PLAYER_TRACK_PREV)
+            self.play_button = gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY)
+            self.next_button = gui.add_button("Next step (toward t = 0)", icon=viser.Icon.PLAYER_TRACK_NEXT)
+            self.duration = gui.add_number(
+                "duration (s)",
+                animation_seconds,
+                min=0.0,
+                max=30.0,
+                step=0.1,
+                hint="Time the animation takes from t = T to 0",
+            )
+            self.show_trail = gui.add_checkbox(
+                "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
+            )
+            self.play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+        with gui.add_folder("Sampling"):
+            self.samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=16)
+            self.highlight = gui.add_dropdown("highlight", self._highlight_options(16), initial_value="best")
+            self.sampler = gui.add_dropdown("sampler", ("DDPM", "DDIM"), initial_value="DDPM")
+            self.ddim_steps = gui.add_slider(
+                "DDIM steps",
+                min=1,
+                max=num_timesteps,
+                step=1,
+                initial_value=min(DEFAULT_DDIM_STEPS, num_timesteps),
+                disabled=True,
+            )
+            self.seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
+            self.new_seed = gui.add_checkbox("new seed each move", False)
+            self.refine = gui.add_checkbox(
+                "refine (DLS)", False, hint="Damped-least-squares polish, drawn in green beside the raw pose"
+            )
+            self.refine_steps = gui.add_slider("refine steps", min=1, max=50, step=1, initial_value=5, disabled=True)
+        with gui.add_folder("Readouts"):
+            self.readout_text = gui.add_markdown("")
+            self.plot = gui.add_uplot(
+                data=(np.array([0.0, 1.0]), np.ones(2), np.ones(2), np.full(2, np.nan)),
+                series=(
+                    viser.uplot.Series(label="t"),
+                    viser.uplot.Series(label="median", stroke="#999999", width=1.5),
+                    viser.uplot.Series(label="highlighted", stroke="#1f5ad2", width=2),
+                    viser.uplot.Series(
+                        label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
+                    ),
+                ),
+                title="tip error vs timestep",
+                scales={
+                    "x": viser.uplot.Scale(time=False, dir=-1, auto=True),
+                    "y": viser.uplot.Scale(distr=3, range=(1e-3, 10.0)),
+                },
+                legend=viser.uplot.Legend(show=True),
+                aspect=1.5,
+            )
+        with gui.add_folder("Model"):
+            labels = tuple(self.checkpoints)
+            self.checkpoint = gui.add_dropdown("checkpoint", labels, initial_value=self._current_checkpoint_label())
+            self.model_text = gui.add_markdown(self._model_description())
+
+        self.timestep.on_update(self._on_timestep)
+        self.previous_button.on_click(lambda _: self._step_by(-1))
+        self.next_button.on_click(lambda _: self._step_by(+1))
+        self.play_button.on_click(lambda _: self.toggle_play())
+        self.show_trail.on_update(lambda _: self.show_state(self.state))
+        self.highlight.on_update(lambda _: self._on_highlight())
+        self.samples.on_update(lambda _: self._on_samples())
+        self.sampler.on_update(lambda _: self._on_sampler())
+        for handle in (self.ddim_steps, self.refine_steps):
+            handle.on_update(lambda _: self.request_solve())
+        self.seed.on_update(lambda event: None if event.client is None else self.request_solve())
+        self.refine.on_update(lambda _: self._on_refine())
+        self.checkpoint.on_update(lambda event: self._on_checkpoint(event))
+
+    def _on_timestep(self, event: viser.GuiEvent) -> None:
+        if event.client is None and self._syncing:
+            return  # the app moved the slider while drawing
+        if event.client is not None:
+            self.player.pause()
+        with self._lock:
+            if self.solved is not None:
+                self._draw_state(nearest_state(self.solved.view.labels, self.timestep.value))
+
+    def _step_by(self, delta: int) -> None:
+        self.player.pause()
+        with self._lock:
+            self._draw_state(self.state + delta)
+
+    def toggle_play(self) -> None:
+        """Pause a running animation, or play from the current step (from t = T when at the end)."""
+        if self.player.playing:
+            self.player.pause()
+        elif self.solved is not None:
+            last = self.solved.view.num_states - 1
+            first = 0 if self.state >= last else self.state
+            if first == 0:
+                self.show_state(0)
+            self.player.play(first, last, self.duration.value / max(last, 1), first_shown=True)
+        self._write_play_label()
+
+    def _on_highlight(self) -> None:
+        with self._lock:
+            if self.solved is not None:
+                self._recolor()
+                self._draw_state(self.state)
+
+    def _on_samples(self) -> None:
+        options = self._highlight_options(int(self.samples.value))
+        current = self.highlight.value
+        self.highlight.options = options
+        if current not in options:
+            self.highlight.value = "best"
+        self.request_solve()
+
+    def _on_sampler(self) -> None:
+        self.ddim_steps.disabled = self.sampler.value != "DDIM"
+        self.request_solve()
+
+    def _on_refine(self) -> None:
+        self.refine_steps.disabled = not self.refine.value
+        self.request_solve()
+
+    @staticmethod
+    def _highlight_options(num_samples: int) -> tuple[str, ...]:
+        return ("best", *(str(index) for index in range(num_samples)))
+
+    def _write_play_label(self) -> None:
+        playing = self.player.playing
+        self.play_button.label = "Pause" if playing else "Play"
+        self.play_button.icon = viser.Icon.PLAYER_PAUSE if playing else viser.Icon.PLAYER_PLAY
+
+    def _write_target_text(self) -> None:
+        x, y = self.target
+        inner, outer = self.solver.reach
+        text = f"**Target** x = {x:+.3f}, y = {y:+.3f}"
+        if self.target_clamped:
+            boundary = outer if np.hypot(x, y) >= outer - 1e-9 else inner
+            text += f"  \n*Clamped to the workspace boundary* (r = {boundary:.2f}): the arm reaches no farther."
+        self.target_text.content = text
+
+    def _write_readouts(self) -> None:
+        solved = self.solved
+        if solved is None:
+            self.readout_text.content = (
+                f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
+            )
+            return
+        view, request = solved.view, solved.request
+        state, last, highlight = self.state, view.num_states - 1, self.highlight_index()
+        lines = [
+            f"**Step** {state} of {last} (t = {int(view.labels[state])})",
+            f"**Tip error**, sample {highlight}: {view.tip_error[state, highlight]:.4f} now, "
+            f"{view.tip_error[last, highlight]:.4f} at t = 0",
+            f"median of K = {view.num_samples}: {np.median(view.tip_error[state]):.4f} now, "
+            f"{np.median(view.tip_error[last]):.4f} at t = 0",
+        ]
+        if view.refined:
+            lines.append(f"refined ({request.refine_steps} DLS steps): {view.final_tip_error[highlight]:.2e}")
+        steps = f"{request.steps} steps" if request.sampler == "ddim" else f"{last} steps"
+        lines.append(
+            f"**Solve** {1000 * solved.solve_seconds:.1f} ms ({request.sampler.upper()}, {steps}, seed {request.seed})"
+        )
+        if self.error:
+            lines.append(f"**Last solve failed** {self.error}")
+        self.readout_text.content = "  \n".join(lines)
+
+    def _write_plot_scales(self) -> None:
+        view = self.solved.view
+        positive = view.tip_error[view.tip_error > 0]
+        low = max(1e-6, float(positive.min()) / 2) if positive.size else 1e-3
+        high = max(float(view.tip_error.max()) * 2, low * 10)
+        self.plot.scales = {
+            "x": viser.uplot.Scale(time=False, dir=-1, auto=True),
+            "y": viser.uplot.Scale(distr=3, range=(low, high)),
+        }
+
+    def _model_description(self) -> str:
+        metadata = self.solver.metadata
+        model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
+        denoiser = model.get("denoiser", {}).get("kind", "?")
+        lengths = ", ".join(f"{length:g}" for length in self.solver.lengths)
+        lines = [
+            f"**N** = {self.solver.num_links} links (lengths {lengths}), **T** = {self.solver.timesteps}",
+            f"**denoiser** {denoiser}, representation {model.get('representation', '?')}, "
+            f"schedule {model.get('schedule', {}).get('kind', '?')}",
+        ]
+        if "tip_error_median" in metrics:
+            lines.append(
+                f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
+                f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} ({metrics.get('sampler', '')})"
+            )
+        return "  \n".join(lines)
+
+    # ---------------------------------------------------------------- checkpoints
+
+    def _current_checkpoint_label(self) -> str:
+        path = Path(self.solver.metadata.get("path", ""))
+        for label, candidate in self.checkpoints.items():
+            if candidate == path or (candidate.exists() and path.exists() and candidate.resolve() == path.resolve()):
+                return label
+        label = str(path)
+        self.checkpoints[label] = path
+        return label
+
+    def refresh_checkpoints(self) -> None:
+        """Re-list the checkpoint folder (new models appear as they are trained)."""
+        if self.checkpoint_folder is None:
+            return
+        current = self._current_checkpoint_label()
+        found = list_checkpoints(self.checkpoint_folder)
+        found.setdefault(current, self.checkpoints[current])
+        self.checkpoints = found
+        self.checkpoint.options = tuple(found)
+
+    def _on_checkpoint(self, event: viser.GuiEvent) -> None:
+        label = self.checkpoint.value
+        current = self._current_checkpoint_label()
+        if label == current:
+            return
+        self.load_checkpoint(self.checkpoints[label])
+
+    def load_checkpoint(self, path: Path) -> bool:
+        """Switch to another model: reload, redraw the arm with its number of links, solve again."""
+        try:
+            solver = ikdp.load(path, device=self.solver.device)
+        except (ikdp.CheckpointError, OSError, RuntimeError) as error:
+            self.model_text.content = f"**Could not load** {error}  \n\n" + self._model_description()
+            self.checkpoint.value = self._current_checkpoint_label()
+            return False
+        self.player.pause()
+        with self._lock:
+            self.solver = solver
+            self.solved = None
+            self._remove_arm_nodes()
+            self.target = self._initial_target(self.target)
+            self._build_scene()
+            num_timesteps = solver.timesteps
+            self.timestep.max = num_timesteps
+            self.ddim_steps.max = num_timesteps
+            self.ddim_steps.value = min(self.ddim_steps.value, num_timesteps)
+            self.model_text.content = self._model_description()
+            self.checkpoint.value = self._current_checkpoint_label()
+        self.move_target(self.target)
+        return True
+
+    def _remove_arm_nodes(self) -> None:
+        for name in ("trail", "links", "joints", "tips", "refined_lines", "refined_tips"):
+            handle = getattr(self, name, None)
+            if handle is not None:
+                handle.remove()
+                setattr(self, name, None)
+        self._arm_shape = None

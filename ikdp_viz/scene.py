@@ -1,0 +1,222 @@
+"""Drawable arrays from one solve: polylines, colours from faint to dark, link and joint placements.
+
+No viser here. The viewer (app.py) only copies these arrays into scene handles,
+so everything it draws is built, and tested, as plain numpy. All geometry lies
+in the arm's plane, z = 0, with the base at the origin.
+
+A solve's trajectory has S+1 *states*: state 0 is pure noise (t = T), state S
+the sampler's final pose (t = 0). Poses are drawn as the paper's Fig. "vis" draws
+them: state 0 faintest, state S darkest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ikdp import SolveResult, forward_kinematics
+
+FAINT = (226, 226, 226)  # pure noise, t = T: the paper's lightest lines
+DARK = (28, 28, 28)  # the final pose, t = 0
+ACCENT_FAINT = (205, 222, 245)  # the highlighted sample at t = T
+ACCENT_DARK = (20, 90, 210)  # the highlighted sample at t = 0
+TIP_FAINT = (248, 222, 190)  # tip markers at t = T
+TIP_DARK = (235, 120, 10)  # tip markers at t = 0
+REFINED = (25, 160, 70)  # the damped-least-squares polish of the final pose
+FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
+LAYER_HEIGHT = 1e-4  # z step between consecutive states, so later (darker) lines draw over earlier ones
+
+
+def fade_colors(count: int, faint=FAINT, dark=DARK, *, gamma: float = FADE_GAMMA) -> np.ndarray:
+    """(count, 3) uint8 colours from `faint` (index 0) to `dark` (last index).
+
+    The weight of `dark` is (i / (count-1)) ** gamma: with gamma > 1 the many noisy
+    states stay faint and the last steps darken fast, as in the paper's figure. Every
+    channel moves monotonically, so each colour is at least as dark as the one before.
+    One colour alone is `dark`: a single state is a final pose.
+    """
+    if count < 1:
+        raise ValueError(f"count: expected a positive number of colours, got {count}")
+    weights = np.linspace(0.0, 1.0, count) ** gamma if count > 1 else np.ones(1)
+    faint, dark = np.asarray(faint, dtype=np.float64), np.asarray(dark, dtype=np.float64)
+    return np.rint(faint + weights[:, None] * (dark - faint)).astype(np.uint8)
+
+
+def clamp_to_workspace(point, inner: float, outer: float) -> tuple[np.ndarray, bool]:
+    """The nearest point of the annulus inner <= |p| <= outer to `point` (2,), and whether it moved."""
+    point = np.asarray(point, dtype=np.float64).reshape(-1)[:2]
+    if point.shape != (2,) or not np.isfinite(point).all():
+        raise ValueError(f"point: expected two finite numbers, got {point.tolist()}")
+    radius = float(np.hypot(*point))
+    if inner <= radius <= outer:
+        return point, False
+    direction = point / radius if radius > 0 else np.array([1.0, 0.0])
+    return direction * (outer if radius > outer else inner), True
+
+
+def state_labels(timesteps: list[int]) -> np.ndarray:
+    """Diffusion time of each of the S+1 states, (S+1,) int: T for pure noise down to 0 for the final pose.
+
+    `timesteps` are the sampler's 0-based steps, noisiest first (T-1, ..., 0 for DDPM). The step
+    at t lands on noise level t-1 (DDPM) or on the next visited level (DDIM); in the paper's
+    1-based time both read "the state after stepping at t_k is x at t_{k+1} + 1", and the last is x_0.
+    """
+    return np.array([t + 1 for t in timesteps] + [0], dtype=np.int64)
+
+
+def nearest_state(labels: np.ndarray, t: float) -> int:
+    """Index of the state whose diffusion time is closest to t (the noisier one on a tie)."""
+    return int(np.argmin(np.abs(np.asarray(labels, dtype=np.float64) - t)))
+
+
+@dataclass(frozen=True)
+class SolveView:
+    """Everything the viewer draws for one solve of one target."""
+
+    target: np.ndarray  # (2,) the target the arm was asked to reach
+    lengths: np.ndarray  # (N,) bone lengths
+    labels: np.ndarray  # (S+1,) diffusion time of each state, T (pure noise) down to 0
+    joints: np.ndarray  # (S+1, K, N+1, 2) every joint of every sample at every state, base first
+    tip_error: np.ndarray  # (S+1, K) distance from each state's tip to the target
+    final_joints: np.ndarray  # (K, N+1, 2) the pose the solver returned (refined when `refined`)
+    final_tip_error: np.ndarray  # (K,) the solver's tip error of that pose
+    refined: bool  # final_joints is the damped-least-squares polish of joints[-1]
+
+    @property
+    def num_states(self) -> int:
+        return self.joints.shape[0]
+
+    @property
+    def num_samples(self) -> int:
+        return self.joints.shape[1]
+
+    @property
+    def num_links(self) -> int:
+        return self.joints.shape[2] - 1
+
+    def best_sample(self) -> int:
+        """The sample whose returned pose lands closest to the target."""
+        return int(np.argmin(self.final_tip_error))
+
+
+def build_view(result: SolveResult, lengths, target) -> SolveView:
+    """The drawable arrays of the first target of a `solver.solve(..., return_trajectory=True)` result."""
+    if result.trajectory is None:
+        raise ValueError("result: solve with return_trajectory=True, the viewer draws every state")
+    lengths = torch.as_tensor(lengths, dtype=torch.float64)
+    target = np.asarray(target, dtype=np.float64).reshape(2)
+    trajectory = result.trajectory[:, 0].detach().cpu().double()  # (S+1, K, N)
+    joints = forward_kinematics(trajectory, lengths).numpy()  # (S+1, K, N+1, 2)
+    final_joints = forward_kinematics(result.angles[0].detach().cpu().double(), lengths).numpy()  # (K, N+1, 2)
+    return SolveView(
+        target=target,
+        lengths=lengths.numpy(),
+        labels=state_labels(result.timesteps),
+        joints=joints,
+        tip_error=np.linalg.norm(joints[:, :, -1] - target, axis=-1),
+        final_joints=final_joints,
+        final_tip_error=result.tip_error[0].detach().cpu().double().numpy(),
+        refined=not torch.equal(result.angles, result.raw_angles),
+    )
+
+
+def sample_colors(num_states: int, num_samples: int, highlight: int | None) -> np.ndarray:
+    """(S+1, K, 3) uint8: the faint-to-dark ramp per state, the accent ramp for the highlighted sample."""
+    colors = np.repeat(fade_colors(num_states)[:, None], num_samples, axis=1)
+    if highlight is not None:
+        colors[:, highlight] = fade_colors(num_states, ACCENT_FAINT, ACCENT_DARK)
+    return colors
+
+
+def polyline_segments(joints: np.ndarray, z: float = 0.0) -> np.ndarray:
+    """Polylines (..., P, 2) -> their segments (M, 2, 3) in order, M = prod(...) * (P-1), at height z."""
+    joints = np.asarray(joints)
+    ends = np.stack((joints[..., :-1, :], joints[..., 1:, :]), axis=-2)  # (..., P-1, 2, 2)
+    heights = np.full(ends.shape[:-1] + (1,), z, dtype=ends.dtype)
+    return np.concatenate((ends, heights), axis=-1).reshape(-1, 2, 3)
+
+
+def trail_points(joints: np.ndarray) -> np.ndarray:
+    """Every state's K polylines as segments, (S+1, K*N, 2, 3) float32; state s lies at z = s * LAYER_HEIGHT."""
+    num_states = joints.shape[0]
+    per_state = [polyline_segments(joints[state], z=state * LAYER_HEIGHT) for state in range(num_states)]
+    return np.stack(per_state).astype(np.float32)
+
+
+def trail_colors(colors: np.ndarray, num_links: int) -> np.ndarray:
+    """Per-sample colours (S+1, K, 3) -> one per segment end, (S+1, K*N, 2, 3) matching `trail_points`."""
+    num_states, num_samples, _ = colors.shape
+    per_segment = np.broadcast_to(colors[:, :, None, None, :], (num_states, num_samples, num_links, 2, 3))
+    return per_segment.reshape(num_states, num_samples * num_links, 2, 3)
+
+
+def trail_until(points: np.ndarray, colors: np.ndarray, state: int) -> tuple[np.ndarray, np.ndarray]:
+    """The segments of states 0..state-1 (the poses the current one came through), (M, 2, 3) each."""
+    return points[:state].reshape(-1, 2, 3), colors[:state].reshape(-1, 2, 3)
+
+
+def yaw_quaternions(angles: np.ndarray) -> np.ndarray:
+    """Rotations about +z by `angles` (...,) as wxyz quaternions (..., 4)."""
+    half = np.asarray(angles, dtype=np.float64) / 2
+    zeros = np.zeros_like(half)
+    return np.stack((np.cos(half), zeros, zeros, np.sin(half)), axis=-1)
+
+
+@dataclass(frozen=True)
+class ArmPlacement:
+    """Instance transforms of K arms: links are a unit-length x-aligned mesh, scaled along x to each bone."""
+
+    link_positions: np.ndarray  # (K*N, 3) bone midpoints
+    link_wxyzs: np.ndarray  # (K*N, 4) rotation of +x onto each bone
+    link_scales: np.ndarray  # (K*N, 3) (bone length, 1, 1)
+    joint_positions: np.ndarray  # (K*(N+1), 3) base, joints and tip of each arm
+    tip_positions: np.ndarray  # (K, 3)
+
+
+def arm_placement(joints: np.ndarray, lengths, *, raised: int | None = None, lift: float = 0.0) -> ArmPlacement:
+    """Transforms drawing K arms of joints (K, N+1, 2); the `raised` sample lifted by `lift` to draw on top."""
+    joints = np.asarray(joints, dtype=np.float64)
+    num_samples, num_points, _ = joints.shape
+    heights = np.zeros((num_samples, 1))
+    if raised is not None:
+        heights[raised] = lift
+    starts, ends = joints[:, :-1], joints[:, 1:]  # (K, N, 2)
+    delta = ends - starts
+    headings = np.arctan2(delta[..., 1], delta[..., 0])  # (K, N)
+    middles = np.concatenate(
+        ((starts + ends) / 2, np.broadcast_to(heights[:, None], (num_samples, num_points - 1, 1))), -1
+    )
+    scales = np.ones((num_samples, num_points - 1, 3))
+    scales[..., 0] = np.asarray(lengths, dtype=np.float64)
+    points = np.concatenate((joints, np.broadcast_to(heights[:, None], (num_samples, num_points, 1))), -1)
+    return ArmPlacement(
+        link_positions=middles.reshape(-1, 3),
+        link_wxyzs=yaw_quaternions(headings).reshape(-1, 4),
+        link_scales=scales.reshape(-1, 3),
+        joint_positions=points.reshape(-1, 3),
+        tip_positions=points[:, -1],
+    )
+
+
+def circle_segments(radius: float, count: int = 256, z: float = 0.0) -> np.ndarray:
+    """A circle about the origin as `count` segments, (count, 2, 3)."""
+    angles = np.linspace(0.0, 2 * np.pi, count + 1)
+    ring = radius * np.stack((np.cos(angles), np.sin(angles)), axis=-1)  # (count+1, 2)
+    return polyline_segments(ring, z=z)
+
+
+def error_curves(view: SolveView, highlight: int, state: int) -> tuple[np.ndarray, ...]:
+    """uPlot data for tip error against diffusion time, x ascending (t = 0 .. T).
+
+    Series: the median over the K samples, the highlighted sample, and a marker
+    that is the highlighted sample's error at the current state and NaN elsewhere.
+    """
+    order = np.argsort(view.labels, kind="stable")  # labels run T..0; uPlot needs x ascending
+    floor = 1e-6  # the plot's y axis is logarithmic
+    median = np.maximum(np.median(view.tip_error, axis=1), floor)
+    chosen = np.maximum(view.tip_error[:, highlight], floor)
+    marker = np.full(view.num_states, np.nan)
+    marker[state] = chosen[state]
+    return (view.labels[order].astype(np.float64), median[order], chosen[order], marker[order])

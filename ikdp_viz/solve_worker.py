@@ -1,0 +1,114 @@
+"""A worker thread on which the newest request always wins.
+
+At most one job runs and at most one waits. Submitting replaces the waiting job
+(it is dropped unstarted), and a job that finishes after a newer one was
+submitted is dropped too: its result is for a stale target. So requests never
+queue up behind a slow solve, and what gets drawn is always the newest target.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass
+class WorkerStats:
+    submitted: int = 0  # jobs handed to submit()
+    replaced: int = 0  # dropped before they started: a newer job arrived while they waited
+    stale: int = 0  # ran, but a newer job arrived before they finished: result dropped
+    delivered: int = 0  # results handed to on_done
+    failed: int = 0  # jobs that raised
+
+
+class LatestWorker:
+    """Runs `job()` on one daemon thread, then `on_done(ticket, result)` there if the job is still the newest."""
+
+    def __init__(self, name: str = "ikdp-viz-solve"):
+        self._name = name
+        self._condition = threading.Condition()
+        self._waiting: tuple[int, Callable[[], Any], Callable[[int, Any], None], Callable | None] | None = None
+        self._newest = 0  # ticket of the newest submission
+        self._running: int | None = None  # ticket of the job running now
+        self._closed = False
+        self._thread: threading.Thread | None = None  # started by the first submit, not at construction
+        self.stats = WorkerStats()
+
+    def submit(
+        self,
+        job: Callable[[], Any],
+        on_done: Callable[[int, Any], None],
+        on_error: Callable[[int, BaseException], None] | None = None,
+    ) -> int:
+        """Queue `job` in place of any waiting one; returns its ticket (increasing)."""
+        with self._condition:
+            if self._closed:
+                raise RuntimeError("LatestWorker: submit after close()")
+            self._newest += 1
+            if self._waiting is not None:
+                self.stats.replaced += 1
+            self._waiting = (self._newest, job, on_done, on_error)
+            self.stats.submitted += 1
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
+                self._thread.start()
+            self._condition.notify_all()
+            return self._newest
+
+    def is_newest(self, ticket: int) -> bool:
+        with self._condition:
+            return ticket == self._newest
+
+    @property
+    def idle(self) -> bool:
+        """Nothing waiting and nothing running."""
+        with self._condition:
+            return self._waiting is None and self._running is None
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Block until idle (True) or `timeout` seconds pass (False)."""
+        with self._condition:
+            return self._condition.wait_for(lambda: self._waiting is None and self._running is None, timeout)
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Drop the waiting job and stop the thread after the running one."""
+        with self._condition:
+            self._closed = True
+            self._waiting = None
+            self._condition.notify_all()
+            thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+
+    def _run(self) -> None:
+        while True:
+            with self._condition:
+                self._condition.wait_for(lambda: self._waiting is not None or self._closed)
+                if self._closed:
+                    return
+                ticket, job, on_done, on_error = self._waiting
+                self._waiting, self._running = None, ticket
+            try:
+                try:
+                    result = job()
+                except Exception as error:  # a failed solve must not kill the worker
+                    self.stats.failed += 1
+                    if on_error is not None and self.is_newest(ticket):
+                        on_error(ticket, error)
+                    elif on_error is None:
+                        traceback.print_exc()
+                    continue
+                if self.is_newest(ticket):
+                    self.stats.delivered += 1
+                    on_done(ticket, result)
+                else:
+                    self.stats.stale += 1
+            except Exception:
+                traceback.print_exc()  # a failed draw is reported, and the worker goes on
+            finally:
+                with self._condition:
+                    self._running = None
+                    self._condition.notify_all()
