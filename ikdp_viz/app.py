@@ -241,7 +241,7 @@ class VizApp:
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         with self.server.atomic():
-            if self.show_trail.value and state > 0:
+            if self.show_trail.value:
                 points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
                 self.trail.points = points
                 self.trail.colors = segment_colors
@@ -575,7 +575,8 @@ class VizApp:
         return ("best", *(str(index) for index in range(num_samples)))
 
     def _write_play_label(self) -> None:
-        playing = self.player.playing
+        at_end = self.solved is None or self.state >= self.solved.view.num_states - 1
+        playing = self.player.playing and not at_end  # the last frame is drawn while the player still runs
         self.play_button.label = "Pause" if playing else "Play"
         self.play_button.icon = viser.Icon.PLAYER_PAUSE if playing else viser.Icon.PLAYER_PLAY
 

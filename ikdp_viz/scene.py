@@ -153,8 +153,8 @@ def trail_colors(colors: np.ndarray, num_links: int) -> np.ndarray:
 
 
 def trail_until(points: np.ndarray, colors: np.ndarray, state: int) -> tuple[np.ndarray, np.ndarray]:
-    """The segments of states 0..state-1 (the poses the current one came through), (M, 2, 3) each."""
-    return points[:state].reshape(-1, 2, 3), colors[:state].reshape(-1, 2, 3)
+    """The polylines of states 0..state, the current pose's included, as (M, 2, 3) segments and colours."""
+    return points[: state + 1].reshape(-1, 2, 3), colors[: state + 1].reshape(-1, 2, 3)
 
 
 def yaw_quaternions(angles: np.ndarray) -> np.ndarray:

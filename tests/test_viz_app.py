@@ -1,0 +1,228 @@
+"""The viewer in-process: a real viser server on a free port, driven through its handles' API.
+
+Solves use a tiny 3-link checkpoint; the animation duration is 0 unless a test
+plays it, so every check reads a finished frame.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from viz_helpers import drag_gizmo, running_app, settle
+
+import ikdp
+from ikdp.train import TrainConfig, train
+from ikdp_viz.app import list_checkpoints
+
+
+@pytest.fixture(scope="module")
+def two_link_checkpoint(tmp_path_factory):
+    """A second tiny model with another N and T, for the checkpoint switch."""
+    folder = tmp_path_factory.mktemp("tiny2")
+    config = TrainConfig(
+        joints=2, steps=10, batch=32, hidden=16, blocks=1, timesteps=12, eval_targets=0, save_every=1000,
+        output=str(folder / "two.pt"), log_dir=str(folder / "tb"), threads=1,
+    )  # fmt: skip
+    return train(config)
+
+
+@pytest.fixture
+def solver(tiny_checkpoint):
+    return ikdp.load(tiny_checkpoint)
+
+
+@pytest.fixture
+def app(solver):
+    with running_app(solver, animation_seconds=0.0) as app:
+        settle(app)
+        yield app
+
+
+def drawn_joints(app) -> np.ndarray:
+    """Joint positions of the solid arms on screen, (K, N+1, 2)."""
+    view = app.solved.view
+    return app.joints.batched_positions.reshape(view.num_samples, view.num_links + 1, 3)[..., :2]
+
+
+def final_polylines(app) -> np.ndarray:
+    """The last state's polylines in the trail node, (K, N, 2, 2): segment ends per link."""
+    view = app.solved.view
+    count = view.num_samples * view.num_links
+    return app.trail.points[-count:].reshape(view.num_samples, view.num_links, 2, 3)[..., :2]
+
+
+def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, solver):
+    drag_gizmo(app, 1.1, -0.7)
+    settle(app)
+    view = app.solved.view
+    assert np.allclose(view.target, [1.1, -0.7]) and app.state == view.num_states - 1
+    assert app.timestep.value == 0
+    # the same solve, independently: the app draws what the public API returns for this target and seed
+    generator = torch.Generator().manual_seed(int(app.seed.value))
+    out = solver.solve((1.1, -0.7), num_samples=16, generator=generator, return_trajectory=True)
+    tips = final_polylines(app)[:, -1, 1]  # (K, 2) the end of each final polyline
+    tip_error = np.linalg.norm(tips - [1.1, -0.7], axis=-1)
+    assert np.allclose(tip_error, out.raw_tip_error[0].numpy(), atol=1e-4)  # within the solver's own error
+    expected = ikdp.forward_kinematics(out.raw_angles[0].double()).numpy()
+    assert np.allclose(drawn_joints(app), expected, atol=1e-4)
+    assert app.links.batched_positions.shape == (16 * 3, 3) and app.tips.batched_positions.shape == (16, 3)
+    assert "x = +1.100, y = -0.700" in app.target_text.content and "Clamped" not in app.target_text.content
+
+
+def test_scrubbing_the_timestep_slider_shows_that_state(app):
+    view = app.solved.view
+    final = drawn_joints(app).copy()
+    app.timestep.value = 7
+    state = int(np.flatnonzero(view.labels == 7)[0])
+    assert app.state == state
+    shown = drawn_joints(app)
+    assert not np.allclose(shown, final)
+    assert np.allclose(shown, view.joints[state], atol=1e-5)
+    assert app.trail.points.shape[0] == (state + 1) * view.num_samples * view.num_links
+    assert f"**Step** {state} of {view.num_states - 1} (t = 7)" in app.readout_text.content
+    t, median, chosen, marker = app.plot.data
+    assert np.isfinite(marker).sum() == 1 and t[np.isfinite(marker)][0] == 7
+
+
+def test_previous_and_next_buttons_step_through_the_states(app):
+    last = app.solved.view.num_states - 1
+    app.previous_button.value = True  # what a click does
+    assert app.state == last - 1 and app.timestep.value == 1
+    app.next_button.value = True
+    app.next_button.value = True  # past the end: stays on the final pose
+    assert app.state == last and app.timestep.value == 0
+
+
+def test_a_target_past_the_boundary_is_clamped_and_the_panel_says_so(app, solver):
+    drag_gizmo(app, 10.0, 0.0)
+    settle(app)
+    outer = solver.reach[1]
+    assert np.allclose(app.gizmo.position, [outer, 0.0, 0.0])
+    assert np.allclose(app.solved.view.target, [outer, 0.0])
+    assert "Clamped to the workspace boundary" in app.target_text.content
+
+
+def test_the_trail_toggle_shows_all_intermediate_poses_or_none(app):
+    view = app.solved.view
+    assert app.trail.visible and app.trail.points.shape[0] == view.num_states * view.num_samples * view.num_links
+    app.show_trail.value = False
+    assert not app.trail.visible and app.links.visible
+    app.show_trail.value = True
+    assert app.trail.visible
+
+
+def test_samples_and_highlight_change_what_is_drawn(app):
+    app.samples.value = 5
+    settle(app)
+    assert app.solved.view.num_samples == 5 and app.links.batched_positions.shape == (5 * 3, 3)
+    assert app.highlight.options == ("best", "0", "1", "2", "3", "4")
+    app.highlight.value = "3"
+    colors = app.links.batched_colors.reshape(5, 3, 3)
+    assert (colors[3] != colors[0]).any() and (colors[0] == colors[1]).all()
+    assert "sample 3" in app.readout_text.content
+
+
+def test_ddim_with_fewer_steps_gives_fewer_states(app):
+    app.ddim_steps.value = 5
+    app.sampler.value = "DDIM"
+    settle(app)
+    view = app.solved.view
+    assert view.num_states == 6 and view.labels[0] == app.timestep.max and view.labels[-1] == 0
+    assert not app.ddim_steps.disabled and "DDIM, 5 steps" in app.readout_text.content
+    app.timestep.value = view.labels[2] + 1  # between two visited states: the nearest one is shown
+    assert app.state == 2
+
+
+def test_refine_draws_the_polished_pose_beside_the_raw_one(app, solver):
+    app.refine.value = True
+    settle(app)
+    view = app.solved.view
+    assert view.refined and app.refined_lines.visible and app.refined_tips.visible
+    assert np.allclose(app.refined_tips.batched_positions[:, :2], view.final_joints[:, -1], atol=1e-5)
+    assert np.median(view.final_tip_error) < np.median(view.tip_error[-1])  # the polish helps
+    app.timestep.value = 5
+    assert not app.refined_lines.visible  # only beside the final pose
+
+
+def test_a_fixed_seed_repeats_the_solve_and_new_seed_each_move_changes_it(app):
+    drag_gizmo(app, 0.5, 1.5)
+    settle(app)
+    first = app.solved.view.joints.copy()
+    drag_gizmo(app, 0.6, 1.5)
+    drag_gizmo(app, 0.5, 1.5)
+    settle(app)
+    assert np.array_equal(app.solved.view.joints, first)
+    app.new_seed.value = True
+    drag_gizmo(app, 0.6, 1.5)
+    settle(app)
+    seed = app.solved.request.seed
+    assert seed == app.seed.value and f"seed {seed}" in app.readout_text.content
+
+
+def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(app, solver, monkeypatch):
+    entered, release = threading.Event(), threading.Event()
+    real_solve = solver.solve
+
+    def slow_solve(targets, **options):
+        if not entered.is_set():
+            entered.set()
+            assert release.wait(30)
+        return real_solve(targets, **options)
+
+    monkeypatch.setattr(solver, "solve", slow_solve)
+    stats = app.worker.stats
+    before = (stats.replaced, stats.stale)
+    drag_gizmo(app, 1.0, 1.0)
+    assert entered.wait(30)  # this solve now blocks the worker
+    drag_gizmo(app, 0.0, 1.5)  # waits, then is replaced
+    drag_gizmo(app, -1.2, 0.4)  # the newest
+    app.timestep.value = 3  # the panel still answers, on the previous solve
+    assert "x = -1.200, y = +0.400" in app.target_text.content and app.state == app.solved.view.num_states - 4
+    release.set()
+    settle(app)
+    assert np.allclose(app.solved.view.target, [-1.2, 0.4])
+    assert (stats.replaced - before[0], stats.stale - before[1]) == (1, 1)
+
+
+def test_the_animation_plays_from_noise_to_the_final_pose(app):
+    shown = []
+    app.timestep.on_update(lambda event: shown.append(app.timestep.value))
+    app.duration.value = 0.3
+    drag_gizmo(app, -0.4, 1.2)
+    settle(app)
+    assert shown[0] == app.solved.view.labels[0] and shown[-1] == 0
+    assert all(later <= earlier for earlier, later in zip(shown, shown[1:], strict=False))
+    assert app.play_button.label == "Play"
+    app.toggle_play()  # at the end: plays again from t = T
+    settle(app)
+    assert app.state == app.solved.view.num_states - 1
+
+
+def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoint, two_link_checkpoint, tmp_path):
+    junk = tmp_path / "junk.pt"
+    junk.write_text("not a checkpoint")
+    app.checkpoints = {"tiny.pt": Path(tiny_checkpoint), "two.pt": Path(two_link_checkpoint), "junk.pt": junk}
+    app.checkpoint.options = tuple(app.checkpoints)
+    app.checkpoint.value = "two.pt"
+    settle(app)
+    assert app.solver.num_links == 2 and app.solved.view.num_links == 2
+    assert app.links.batched_positions.shape == (16 * 2, 3) and app.joints.batched_positions.shape == (16 * 3, 3)
+    assert app.timestep.max == 12 and app.solved.view.num_states == 13
+    assert "**N** = 2 links" in app.model_text.content
+    app.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
+    assert app.solver.num_links == 2 and app.checkpoint.value == "two.pt"
+    assert "Could not load" in app.model_text.content and "junk.pt" in app.model_text.content
+
+
+def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):
+    (tmp_path / "b.pt").write_bytes(b"")
+    (tmp_path / "a.pt").write_bytes(b"")
+    (tmp_path / "notes.txt").write_text("")
+    elsewhere = tmp_path.parent / "other.pt"
+    assert list(list_checkpoints(tmp_path)) == ["a.pt", "b.pt"]
+    assert list(list_checkpoints(tmp_path, elsewhere)) == ["a.pt", "b.pt", str(elsewhere)]
+    assert list(list_checkpoints(tmp_path, tmp_path / "a.pt")) == ["a.pt", "b.pt"]

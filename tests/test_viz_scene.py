@@ -1,0 +1,249 @@
+"""The viewer's scene building, as plain arrays: no server, no browser."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import ikdp
+from ikdp import SolveResult
+from ikdp_viz import meshes
+from ikdp_viz.scene import (
+    ACCENT_DARK,
+    DARK,
+    FAINT,
+    LAYER_HEIGHT,
+    arm_placement,
+    build_view,
+    circle_segments,
+    clamp_to_workspace,
+    error_curves,
+    fade_colors,
+    nearest_state,
+    polyline_segments,
+    sample_colors,
+    state_labels,
+    trail_colors,
+    trail_points,
+    trail_until,
+    yaw_quaternions,
+)
+
+
+def luminance(colors: np.ndarray) -> np.ndarray:
+    return colors.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def rotate(wxyz: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """Rotate `vector` (3,) by unit quaternions (..., 4)."""
+    w, xyz = wxyz[..., :1], wxyz[..., 1:]
+    t = 2 * np.cross(xyz, vector)
+    return vector + w * t + np.cross(xyz, t)
+
+
+def hand_made_result() -> SolveResult:
+    """N=2 unit links, K=2 samples, S=2 steps, headings chosen so every joint is known in closed form."""
+    half_pi = math.pi / 2
+    trajectory = torch.tensor(
+        [
+            [[[half_pi, half_pi], [math.pi, 0.0]]],  # t = T: straight up; folded back onto the base
+            [[[0.0, half_pi], [0.0, -half_pi]]],  # an elbow
+            [[[0.0, 0.0], [half_pi, 0.0]]],  # final: straight along +x; an L
+        ],
+        dtype=torch.float64,
+    )  # (S+1, B=1, K=2, N=2)
+    final = trajectory[-1]
+    target = torch.tensor([[2.0, 0.0]], dtype=torch.float64)
+    error = (ikdp.tip_position(final) - target[:, None]).norm(dim=-1)
+    return SolveResult(
+        angles=final,
+        tip_error=error,
+        trajectory=trajectory,
+        timesteps=[1, 0],
+        reachable=torch.tensor([True]),
+        raw_angles=final,
+        raw_tip_error=error,
+    )
+
+
+def test_fade_colors_run_from_faint_to_dark_monotonically():
+    colors = fade_colors(81)
+    assert colors.shape == (81, 3) and colors.dtype == np.uint8
+    assert tuple(colors[0]) == FAINT and tuple(colors[-1]) == DARK
+    assert (np.diff(colors.astype(int), axis=0) <= 0).all()  # no channel ever lightens
+    assert (np.diff(luminance(colors)) <= 0).all()
+    assert luminance(colors[-1]) < luminance(colors[40]) < luminance(colors[0])
+    accent = fade_colors(10, FAINT, ACCENT_DARK, gamma=1.0)
+    assert (np.diff(luminance(accent)) < 0).all()
+    assert tuple(fade_colors(1)[0]) == DARK  # a single state is a final pose
+    with pytest.raises(ValueError, match="count"):
+        fade_colors(0)
+
+
+def test_clamp_to_workspace_keeps_inside_points_and_projects_outside_ones_radially():
+    point, clamped = clamp_to_workspace((1.0, -2.0), 0.0, 4.0)
+    assert not clamped and np.array_equal(point, [1.0, -2.0])
+    point, clamped = clamp_to_workspace((6.0, 8.0), 0.0, 4.0)
+    assert clamped and np.allclose(point, [2.4, 3.2])  # same direction, on the boundary
+    point, clamped = clamp_to_workspace((0.0, 0.5), 1.0, 3.0)
+    assert clamped and np.allclose(point, [0.0, 1.0])  # inside the inner hole: out to the inner circle
+    point, clamped = clamp_to_workspace((0.0, 0.0), 1.0, 3.0)
+    assert clamped and np.allclose(point, [1.0, 0.0])
+    point, clamped = clamp_to_workspace((4.0, 0.0, 7.0), 0.0, 4.0)  # a gizmo position: z ignored
+    assert not clamped and np.array_equal(point, [4.0, 0.0])
+    with pytest.raises(ValueError, match="point"):
+        clamp_to_workspace((float("nan"), 0.0), 0.0, 4.0)
+
+
+def test_state_labels_run_from_T_to_zero_for_ddpm_and_ddim():
+    assert state_labels(list(range(79, -1, -1))).tolist() == list(range(80, -1, -1))
+    assert state_labels([79, 53, 26, 0]).tolist() == [80, 54, 27, 1, 0]
+    assert state_labels([79]).tolist() == [80, 0]
+    labels = state_labels([79, 53, 26, 0])
+    assert nearest_state(labels, 80) == 0 and nearest_state(labels, 0) == 4
+    assert nearest_state(labels, 50) == 1 and nearest_state(labels, 2) == 3
+
+
+def test_build_view_of_a_hand_made_solve_has_closed_form_joints():
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))
+    assert view.joints.shape == (3, 2, 3, 2)
+    assert (view.num_states, view.num_samples, view.num_links) == (3, 2, 2)
+    assert np.allclose(view.joints[0, 0], [[0, 0], [0, 1], [0, 2]], atol=1e-12)
+    assert np.allclose(view.joints[0, 1], [[0, 0], [-1, 0], [0, 0]], atol=1e-12)
+    assert np.allclose(view.joints[1, 0], [[0, 0], [1, 0], [1, 1]], atol=1e-12)
+    assert np.allclose(view.final_joints[1], [[0, 0], [0, 1], [1, 1]], atol=1e-12)
+    assert np.allclose(view.tip_error[:, 0], [math.hypot(2, 2), math.hypot(1, 1), 0.0], atol=1e-12)
+    assert np.allclose(view.tip_error[-1], [0.0, math.hypot(1, 1)], atol=1e-12)
+    assert view.labels.tolist() == [2, 1, 0] and not view.refined and view.best_sample() == 0
+
+
+def test_build_view_needs_the_trajectory():
+    result = hand_made_result()
+    result.trajectory = None
+    with pytest.raises(ValueError, match="return_trajectory"):
+        build_view(result, (1.0, 1.0), (2.0, 0.0))
+
+
+@pytest.mark.parametrize("refine_steps", [0, 3])
+def test_final_pose_is_the_forward_kinematics_of_the_returned_angles(tiny_checkpoint, refine_steps):
+    solver = ikdp.load(tiny_checkpoint)
+    target = (0.9, 1.3)
+    generator = torch.Generator().manual_seed(0)
+    out = solver.solve(target, num_samples=5, refine_steps=refine_steps, generator=generator, return_trajectory=True)
+    view = build_view(out, solver.lengths, target)
+    expected = ikdp.forward_kinematics(out.angles[0].double(), torch.tensor(solver.lengths, dtype=torch.float64))
+    assert np.allclose(view.final_joints, expected.numpy(), atol=1e-12)
+    assert np.allclose(view.joints[-1], ikdp.forward_kinematics(out.raw_angles[0].double()).numpy(), atol=1e-6)
+    assert np.allclose(view.tip_error[-1], out.raw_tip_error[0].numpy(), atol=1e-5)
+    assert np.allclose(view.final_tip_error, out.tip_error[0].numpy())
+    assert view.refined == (refine_steps > 0)
+    assert view.num_states == solver.timesteps + 1 and view.labels[0] == solver.timesteps and view.labels[-1] == 0
+
+
+def test_polyline_segments_join_consecutive_points_in_order():
+    polyline = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]])
+    segments = polyline_segments(polyline, z=0.5)
+    assert segments.shape == (2, 2, 3)
+    assert np.array_equal(segments[0], [[0, 0, 0.5], [1, 0, 0.5]])
+    assert np.array_equal(segments[1], [[1, 0, 0.5], [1, 2, 0.5]])
+    assert polyline_segments(np.zeros((4, 3, 6, 2))).shape == (4 * 3 * 5, 2, 3)
+
+
+def test_trail_layers_each_state_above_the_one_before_and_colours_it_by_its_state():
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))
+    points = trail_points(view.joints)
+    assert points.shape == (3, 2 * 2, 2, 3) and points.dtype == np.float32
+    assert np.allclose(points[:, :, :, 2], (np.arange(3) * LAYER_HEIGHT)[:, None, None])
+    assert np.allclose(points[2, :2, :, :2], [[[0, 0], [1, 0]], [[1, 0], [2, 0]]])  # sample 0's final polyline
+    colors = sample_colors(3, 2, highlight=1)
+    per_segment = trail_colors(colors, view.num_links)
+    assert per_segment.shape == (3, 4, 2, 3)
+    assert (per_segment[1, :2] == colors[1, 0]).all() and (per_segment[1, 2:] == colors[1, 1]).all()
+    segments, segment_colors = trail_until(points, per_segment, 0)
+    assert segments.shape == (4, 2, 3) and segment_colors.shape == (4, 2, 3)  # the pure-noise poses alone
+    segments, _ = trail_until(points, per_segment, 2)
+    assert segments.shape == (12, 2, 3)
+
+
+def test_sample_colors_give_the_highlighted_sample_the_accent_ramp():
+    colors = sample_colors(5, 3, highlight=2)
+    assert colors.shape == (5, 3, 3)
+    assert tuple(colors[-1, 0]) == DARK and tuple(colors[-1, 2]) == ACCENT_DARK
+    assert (colors[:, 0] == colors[:, 1]).all()
+    assert (sample_colors(5, 3, highlight=None) == fade_colors(5)[:, None]).all()
+
+
+def test_yaw_quaternions_turn_x_onto_the_heading():
+    angles = np.array([0.0, 0.3, math.pi / 2, -2.0])
+    wxyz = yaw_quaternions(angles)
+    assert np.allclose(np.linalg.norm(wxyz, axis=-1), 1.0)
+    turned = rotate(wxyz, np.array([1.0, 0.0, 0.0]))
+    assert np.allclose(turned, np.stack((np.cos(angles), np.sin(angles), np.zeros(4)), -1))
+
+
+def test_arm_placement_puts_each_scaled_link_between_its_joints():
+    rng = np.random.default_rng(0)
+    lengths = np.array([1.0, 0.5, 1.5])
+    headings = torch.tensor(rng.uniform(-math.pi, math.pi, (4, 3)))
+    joints = ikdp.forward_kinematics(headings, torch.tensor(lengths)).numpy()  # (K=4, N+1=4, 2)
+    placement = arm_placement(joints, lengths, raised=2, lift=0.1)
+    assert placement.link_positions.shape == (12, 3) and placement.link_wxyzs.shape == (12, 4)
+    assert placement.joint_positions.shape == (16, 3) and placement.tip_positions.shape == (4, 3)
+    # the unit link mesh spans x in [-1/2, 1/2]: scaled, rotated and moved, its ends land on the joints
+    half_axis = rotate(placement.link_wxyzs, np.array([0.5, 0.0, 0.0])) * placement.link_scales[:, :1]
+    starts = (placement.link_positions - half_axis).reshape(4, 3, 3)
+    ends = (placement.link_positions + half_axis).reshape(4, 3, 3)
+    assert np.allclose(starts[..., :2], joints[:, :-1], atol=1e-12)
+    assert np.allclose(ends[..., :2], joints[:, 1:], atol=1e-12)
+    assert np.allclose(placement.link_scales[:, 0], np.tile(lengths, 4))
+    heights = placement.joint_positions[:, 2].reshape(4, 4)
+    assert np.allclose(heights[2], 0.1) and np.allclose(heights[[0, 1, 3]], 0.0)  # the highlighted arm on top
+    assert np.allclose(placement.tip_positions[:, :2], joints[:, -1])
+
+
+def test_circle_segments_lie_on_the_circle():
+    segments = circle_segments(4.0, count=64, z=-0.1)
+    assert segments.shape == (64, 2, 3)
+    assert np.allclose(np.linalg.norm(segments[..., :2], axis=-1), 4.0)
+    assert np.allclose(segments[1:, 0], segments[:-1, 1]) and np.allclose(segments[0, 0], segments[-1, 1])
+    assert np.allclose(segments[..., 2], -0.1)
+
+
+def test_error_curves_run_in_ascending_t_with_one_marker_at_the_current_state():
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))
+    t, median, chosen, marker = error_curves(view, highlight=1, state=1)
+    assert t.tolist() == [0.0, 1.0, 2.0]  # state 2 is t = 0
+    assert np.isfinite(marker).sum() == 1 and marker[1] == chosen[1] == pytest.approx(view.tip_error[1, 1])
+    assert np.allclose(median[::-1], np.maximum(np.median(view.tip_error, axis=1), 1e-6))
+    assert (chosen > 0).all()  # the plot's axis is logarithmic
+
+
+def test_meshes_are_sized_to_the_arm_and_closed():
+    sizes = meshes.ArmSizes.for_lengths((2.0, 2.0))
+    assert sizes.joint > sizes.link > 0 and sizes.cross > sizes.joint
+    link = meshes.link_mesh(sizes.link)
+    assert np.allclose(link.bounds[:, 0], [-0.5, 0.5])  # unit length along x, centred
+    assert link.is_watertight and meshes.sphere_mesh(sizes.joint).is_watertight
+    cross = meshes.cross_mesh(sizes.cross)
+    assert cross.bounds[0, 2] > 0  # drawn above the arm's plane
+    assert np.isclose(np.abs(cross.vertices[:, :2]).max(), sizes.cross * math.sqrt(0.5) + 0.11 * sizes.cross, rtol=0.2)
+
+
+def test_importing_the_viewer_does_nothing_and_scene_code_never_imports_viser():
+    code = (
+        "import sys, threading, io, contextlib\n"
+        "before = threading.active_count()\n"
+        "out = io.StringIO()\n"
+        "with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):\n"
+        "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.meshes, ikdp_viz.solve_worker, ikdp_viz.player\n"
+        "    assert 'viser' not in sys.modules, 'scene-building code imported viser'\n"
+        "    import ikdp_viz.app, ikdp_viz.__main__\n"
+        "assert out.getvalue() == '', out.getvalue()\n"
+        "assert threading.active_count() == before, threading.enumerate()\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

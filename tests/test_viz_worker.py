@@ -1,0 +1,132 @@
+"""The newest-wins solve worker and the animation player, driven by events, never by sleeps."""
+
+from __future__ import annotations
+
+import threading
+
+from ikdp_viz.player import Player
+from ikdp_viz.solve_worker import LatestWorker
+
+
+def test_the_newest_request_wins_and_stale_ones_are_dropped():
+    worker = LatestWorker()
+    started, release = threading.Event(), threading.Event()
+    ran, delivered = [], []
+
+    def job(name):
+        def run():
+            ran.append(name)
+            if name == "first":
+                started.set()
+                assert release.wait(10)
+            return name
+
+        return run
+
+    def on_done(ticket, result):
+        delivered.append((ticket, result))
+
+    worker.submit(job("first"), on_done)
+    assert started.wait(10)
+    for name in ("second", "third", "fourth"):  # arrive while "first" runs: each replaces the one waiting
+        worker.submit(job(name), on_done)
+    assert not worker.idle
+    release.set()
+    assert worker.wait_idle(10)
+    assert ran == ["first", "fourth"]  # second and third never ran
+    assert delivered == [(4, "fourth")]  # first finished after newer requests: dropped as stale
+    assert (worker.stats.submitted, worker.stats.replaced, worker.stats.stale, worker.stats.delivered) == (4, 2, 1, 1)
+    assert worker.is_newest(4) and not worker.is_newest(1)
+    worker.close()
+
+
+def test_a_failing_job_is_reported_and_the_worker_goes_on():
+    worker = LatestWorker()
+    errors, delivered = [], []
+
+    def broken():
+        raise RuntimeError("solver exploded")
+
+    worker.submit(
+        broken, lambda ticket, result: delivered.append(result), lambda ticket, error: errors.append(str(error))
+    )
+    assert worker.wait_idle(10)
+    worker.submit(lambda: 42, lambda ticket, result: delivered.append(result))
+    assert worker.wait_idle(10)
+    assert errors == ["solver exploded"] and delivered == [42] and worker.stats.failed == 1
+    worker.close()
+
+
+def test_a_worker_starts_its_thread_only_when_asked_and_stops_on_close():
+    before = threading.active_count()
+    worker = LatestWorker()
+    assert threading.active_count() == before and worker.idle
+    worker.submit(lambda: None, lambda ticket, result: None)
+    assert worker.wait_idle(10)
+    worker.close()
+    assert threading.active_count() == before
+
+
+class FakeClock:
+    """A clock that moves only when told (and by `tick` on each reading): the animation's path is then exact."""
+
+    def __init__(self, tick: float = 0.0):
+        self.now, self.tick = 0.0, tick
+
+    def __call__(self):
+        now = self.now
+        self.now += self.tick
+        return now
+
+
+def test_the_player_shows_the_state_the_clock_has_reached_and_ends_on_the_last():
+    clock, drawn, finished = FakeClock(), [], threading.Event()
+
+    def draw(state):
+        drawn.append(state)
+        clock.now += 0.25  # each frame takes 0.25 s: at 0.1 s per state the player skips states
+        if state == 10:
+            finished.set()
+
+    player = Player(draw, frames_per_second=1000, clock=clock)
+    player.play(0, 10, seconds_per_state=0.1)
+    assert finished.wait(10)
+    player.close()
+    assert drawn == [0, 2, 5, 7, 10]  # int(elapsed / 0.1), capped at the last state
+    assert not player.playing
+
+
+def test_the_player_resumes_from_a_shown_state_and_a_zero_duration_jumps_to_the_end():
+    clock, drawn, finished = FakeClock(tick=0.5), [], threading.Event()  # two readings per state
+
+    def draw(state):
+        drawn.append(state)
+        if state == 8:
+            finished.set()
+
+    player = Player(draw, frames_per_second=1000, clock=clock)
+    player.play(5, 8, seconds_per_state=1.0, first_shown=True)  # 5 is on screen already
+    assert finished.wait(10)
+    finished.clear()
+    player.play(0, 8, seconds_per_state=0.0)
+    assert finished.wait(10)
+    player.close()
+    assert drawn == [6, 7, 8, 8]
+
+
+def test_no_frame_is_drawn_after_pause_returns():
+    clock, drawn, reached = FakeClock(), [], threading.Event()
+
+    def draw(state):
+        drawn.append(state)
+        clock.now += 1.0
+        if state == 3:
+            reached.set()
+
+    player = Player(draw, frames_per_second=1000, clock=clock)
+    player.play(0, 1000, seconds_per_state=1.0)
+    assert reached.wait(10)
+    player.pause()
+    count = len(drawn)
+    player.close()  # joins the thread: anything it could still draw would be drawn by now
+    assert len(drawn) == count and drawn == list(range(count)) and not player.playing

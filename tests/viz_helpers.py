@@ -1,0 +1,112 @@
+"""Shared helpers of the viewer's tests: an in-process app on a free port, gizmo moves, the real browser."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import io
+import math
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import viser
+
+import ikdp
+from ikdp_viz.app import VizApp
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--enable-unsafe-swiftshader",
+    "--use-angle=swiftshader",
+    "--disable-background-networking",
+]
+# viser fades its canvas in with a CSS transition that software rendering advances slowly; the
+# pixels under test are the scene's, so the fade is switched off in the page.
+NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
+
+
+@contextlib.contextmanager
+def running_app(solver: ikdp.Solver, **options):
+    """A VizApp on a fresh viser server bound to a free local port; closed on exit."""
+    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner
+        server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = VizApp(server, solver, **options)
+    try:
+        yield app
+    finally:
+        app.close()
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
+
+
+def drag_gizmo(app: VizApp, x: float, y: float, phase: str = "update") -> None:
+    """Do what viser does when a browser drags the target's gizmo: set its pose, then fire its callback."""
+    app.gizmo.position = (x, y, 0.0)
+    event = viser.TransformControlsEvent(client=None, client_id=None, target=app.gizmo, phase=phase)
+    loop = app.server.get_event_loop()
+    asyncio.run_coroutine_threadsafe(app.on_gizmo_update(event), loop).result(timeout=10)
+
+
+def settle(app: VizApp) -> None:
+    assert app.wait_until_still(timeout=60), "the app did not finish solving and animating"
+
+
+def chromium_or_skip() -> str:
+    """Debian's chromium; in CI (CI=true) its absence fails the test instead of skipping it."""
+    path = CHROMIUM if os.path.exists(CHROMIUM) else shutil.which("chromium")
+    if path is None:
+        message = f"chromium not found at {CHROMIUM} or on PATH"
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(message + " (CI=true: the browser tests must run)")
+        pytest.skip(message)
+    return path
+
+
+def canvas_box(page) -> tuple[float, float, float, float]:
+    """(x, y, width, height) of viser's WebGL canvas in page pixels: the largest canvas on the page."""
+    boxes = page.evaluate(
+        "() => [...document.querySelectorAll('canvas')].map(c => { const r = c.getBoundingClientRect();"
+        " return [r.x, r.y, r.width, r.height]; })"
+    )
+    return tuple(max(boxes, key=lambda box: box[2] * box[3]))
+
+
+def project(app: VizApp, box, points: np.ndarray) -> np.ndarray:
+    """World points (..., 2 or 3) -> page pixels (..., 2) through the app's initial camera (top-down pinhole)."""
+    points = np.asarray(points, dtype=np.float64)
+    heights = points[..., 2] if points.shape[-1] == 3 else np.zeros(points.shape[:-1])
+    camera = app.server.initial_camera
+    look_at = np.asarray(camera.look_at)
+    distance = float(camera.position[2]) - heights
+    x0, y0, width, height = box
+    focal = (height / 2) / math.tan(camera.fov / 2)
+    u = x0 + width / 2 + focal * (points[..., 0] - look_at[0]) / distance
+    v = y0 + height / 2 - focal * (points[..., 1] - look_at[1]) / distance
+    return np.stack((u, v), axis=-1)
+
+
+def dark_fraction(image: np.ndarray, pixels: np.ndarray, *, radius: int = 2, threshold: int = 90) -> float:
+    """Share of `pixels` (M, 2) with a dark pixel (every channel < threshold) within `radius` of them."""
+    height, width, _ = image.shape
+    found = 0
+    for u, v in np.rint(pixels).astype(int):
+        rows = slice(max(0, v - radius), min(height, v + radius + 1))
+        window = image[rows, max(0, u - radius) : min(width, u + radius + 1)]
+        found += bool(window.size and (window[..., :3].max(axis=-1) < threshold).any())
+    return found / max(1, len(pixels))
+
+
+def read_png(data: bytes) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+
+
+def write_png(data: bytes, path: Path) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_bytes(data)
