@@ -36,6 +36,9 @@ def save_checkpoint(path: str | Path, payload: dict) -> None:
             torch.save(payload, file)
             file.flush()
             os.fsync(file.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)  # mkstemp makes it private; a checkpoint is an ordinary file
         os.replace(temporary, path)  # a reader sees the old file or the new one, never half of one
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
