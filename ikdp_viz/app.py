@@ -50,6 +50,7 @@ MAX_SAMPLES = 64
 DEFAULT_DDIM_STEPS = 20
 TARGET_RED = (220, 25, 25)
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
+STALE_GRACE = 0.25  # seconds: during a drag on a slow machine, draw a stale solve rather than nothing
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
@@ -72,6 +73,7 @@ class SolveRequest:
     refine_steps: int  # 0: no damped-least-squares polish
     seed: int
     arrival: float  # time.perf_counter() when the move (or settings change) arrived
+    animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
 
 
 @dataclass(frozen=True)
@@ -118,11 +120,13 @@ class VizApp:
         self.solver = solver
         self.checkpoint_folder = checkpoint_folder
         self.checkpoints = dict(checkpoints or {"model": Path(solver.metadata.get("path", "model"))})
-        self.worker = LatestWorker()
+        self.worker = LatestWorker(stale_grace=STALE_GRACE)
         self.player = Player(self._draw_from_player)
         self._lock = threading.RLock()  # guards what is drawn; held while a frame is written
         self._syncing = False  # True while the app itself moves the timestep slider
         self.solved: Solved | None = None  # the solve on screen
+        self._animate_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
+        self._replay_pending = False  # a replay thread is about to start the animation
         self.state = 0  # index of the state on screen
         self.target, self.target_clamped = self._initial_target(target), False
         self.last_seed = 0
@@ -141,8 +145,14 @@ class VizApp:
 
     # ---------------------------------------------------------------- requests
 
-    def move_target(self, point, *, arrival: float | None = None, from_gizmo: bool = False) -> int | None:
-        """Clamp `point` to the workspace, move the cross there and ask for its solve; returns the ticket."""
+    def move_target(
+        self, point, *, arrival: float | None = None, from_gizmo: bool = False, dragging: bool = False
+    ) -> int | None:
+        """Clamp `point` to the workspace, move the cross there and ask for its solve; returns the ticket.
+
+        While `dragging`, each solve is drawn at once at its final pose (its trail from t = T
+        to 0 included), so the arm follows the cross; the denoising plays when the drag ends.
+        """
         arrival = time.perf_counter() if arrival is None else arrival
         inner, outer = self.solver.reach
         target, clamped = clamp_to_workspace(point, inner, outer)
@@ -152,10 +162,12 @@ class VizApp:
             self.gizmo.position = (float(target[0]), float(target[1]), 0.0)
         self._write_target_text()
         if unchanged and from_gizmo:
-            return None  # the drag ended where the last update left it
-        return self.request_solve(arrival)
+            if not dragging:
+                self._animate_after_drag()
+            return None
+        return self.request_solve(arrival, animate=not dragging)
 
-    def request_solve(self, arrival: float | None = None) -> int:
+    def request_solve(self, arrival: float | None = None, *, animate: bool = True) -> int:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""
         if self.new_seed.value:
             self.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
@@ -169,7 +181,10 @@ class VizApp:
             refine_steps=int(self.refine_steps.value) if self.refine.value else 0,
             seed=int(self.seed.value),
             arrival=time.perf_counter() if arrival is None else arrival,
+            animate=animate,
         )
+        # The animation on screen is of a stale target now: stopping it leaves the CPU to the new solve.
+        self.player.interrupt()
         return self.worker.submit(lambda: solve(request), self._show_solved, self._show_error)
 
     async def on_gizmo_update(self, event: viser.TransformControlsEvent) -> None:
@@ -177,7 +192,31 @@ class VizApp:
         if event.phase == "start":
             return
         x, y = event.target.position[:2]
-        self.move_target((x, y), arrival=time.perf_counter(), from_gizmo=True)
+        self.move_target((x, y), arrival=time.perf_counter(), from_gizmo=True, dragging=event.phase == "update")
+
+    def _animate_after_drag(self) -> None:
+        """The drag ended where its last update put the target: animate that solve, now or once it is drawn."""
+        with self._lock:
+            self._animate_target = self.target.copy()  # _show_solved animates a solve for it
+            drawn = self.solved is not None and np.array_equal(self.solved.request.target, self.target)
+        if drawn and self.worker.idle:
+            self._replay_pending = True
+            threading.Thread(target=self.replay, name="ikdp-viz-replay", daemon=True).start()  # off the event loop
+
+    def replay(self) -> None:
+        """Play the denoising of the solve on screen from t = T (if "play on move" is on)."""
+        try:
+            with self._lock:
+                self._animate_target = None
+                if self.solved is None or not self.play_on_move.value or self.duration.value <= 0:
+                    return
+            self.player.pause()
+            self.show_state(0)
+            last = self.solved.view.num_states - 1
+            self.player.play(0, last, self.duration.value / max(last, 1), first_shown=True)
+            self._write_play_label()
+        finally:
+            self._replay_pending = False
 
     def wait_until_still(self, timeout: float = 30.0) -> bool:
         """Block until no solve is waiting or running and the animation has stopped (for tests and scripts)."""
@@ -185,7 +224,7 @@ class VizApp:
         while time.monotonic() < deadline:
             if self.worker.wait_idle(max(0.0, deadline - time.monotonic())) and not self.player.playing:
                 with self._lock:  # a frame in progress finishes first
-                    if self.worker.idle and not self.player.playing:
+                    if self.worker.idle and not self.player.playing and not self._replay_pending:
                         return True
             time.sleep(0.005)
         return False
@@ -206,7 +245,11 @@ class VizApp:
             self._write_plot_scales()
             self._write_refined()
             last = solved.view.num_states - 1
-            animate = self.play_on_move.value and self.duration.value > 0 and last > 0
+            released = self._animate_target is not None and np.array_equal(solved.request.target, self._animate_target)
+            if released:
+                self._animate_target = None
+            wanted = solved.request.animate or released
+            animate = wanted and self.play_on_move.value and self.duration.value > 0 and last > 0
             self._draw_state(0 if animate else last)
             self.latencies.append((solved.request.arrival, time.perf_counter()))
         if animate:

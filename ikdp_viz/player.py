@@ -55,6 +55,13 @@ class Player:
         with self._wake:
             self._playing = False
 
+    def interrupt(self) -> None:
+        """Stop soon, without waiting for a frame being drawn: safe to call from an event loop.
+
+        Unlike pause(), a frame already being drawn may still land after it returns.
+        """
+        self._playing = False
+
     def close(self, timeout: float = 2.0) -> None:
         with self._wake:
             self._closed, self._playing = True, False

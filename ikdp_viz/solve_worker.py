@@ -4,11 +4,18 @@ At most one job runs and at most one waits. Submitting replaces the waiting job
 (it is dropped unstarted), and a job that finishes after a newer one was
 submitted is dropped too: its result is for a stale target. So requests never
 queue up behind a slow solve, and what gets drawn is always the newest target.
+
+One exception keeps a fast stream of requests from starving the screen when
+every job takes longer than the gap between requests (each would finish stale):
+with `stale_grace` set, a stale result is still delivered when nothing has been
+delivered for that many seconds. It is older than the job now running, never
+older than what is on screen.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,14 +28,17 @@ class WorkerStats:
     replaced: int = 0  # dropped before they started: a newer job arrived while they waited
     stale: int = 0  # ran, but a newer job arrived before they finished: result dropped
     delivered: int = 0  # results handed to on_done
+    late: int = 0  # of those, stale ones delivered because nothing had been for `stale_grace` seconds
     failed: int = 0  # jobs that raised
 
 
 class LatestWorker:
     """Runs `job()` on one daemon thread, then `on_done(ticket, result)` there if the job is still the newest."""
 
-    def __init__(self, name: str = "ikdp-viz-solve"):
+    def __init__(self, name: str = "ikdp-viz-solve", *, stale_grace: float | None = None):
         self._name = name
+        self.stale_grace = stale_grace  # seconds without a delivery after which a stale result is delivered anyway
+        self._last_delivery = time.monotonic()
         self._condition = threading.Condition()
         self._waiting: tuple[int, Callable[[], Any], Callable[[int, Any], None], Callable | None] | None = None
         self._newest = 0  # ticket of the newest submission
@@ -101,8 +111,12 @@ class LatestWorker:
                     elif on_error is None:
                         traceback.print_exc()
                     continue
-                if self.is_newest(ticket):
+                newest = self.is_newest(ticket)
+                starving = self.stale_grace is not None and time.monotonic() - self._last_delivery > self.stale_grace
+                if newest or starving:
                     self.stats.delivered += 1
+                    self.stats.late += not newest
+                    self._last_delivery = time.monotonic()
                     on_done(ticket, result)
                 else:
                     self.stats.stale += 1

@@ -174,6 +174,7 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
         return real_solve(targets, **options)
 
     monkeypatch.setattr(solver, "solve", slow_solve)
+    monkeypatch.setattr(app.worker, "stale_grace", None)  # the blocked solve would otherwise be drawn late
     stats = app.worker.stats
     before = (stats.replaced, stats.stale)
     drag_gizmo(app, 1.0, 1.0)
@@ -188,15 +189,23 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
     assert (stats.replaced - before[0], stats.stale - before[1]) == (1, 1)
 
 
-def test_the_animation_plays_from_noise_to_the_final_pose(app):
+def test_a_drag_shows_each_final_pose_at_once_and_the_release_plays_the_denoising(app):
     shown = []
     app.timestep.on_update(lambda event: shown.append(app.timestep.value))
     app.duration.value = 0.3
-    drag_gizmo(app, -0.4, 1.2)
+    drag_gizmo(app, -0.4, 1.2)  # mid-drag: the arm follows at its final pose
     settle(app)
-    assert shown[0] == app.solved.view.labels[0] and shown[-1] == 0
+    assert np.allclose(app.solved.view.target, [-0.4, 1.2]) and app.state == app.solved.view.num_states - 1
+    assert set(shown) <= {0}  # never an intermediate step
+    drag_gizmo(app, -0.4, 1.2, phase="end")  # released where the last update left it: no new solve, a replay
+    settle(app)
+    assert shown[0] == app.solved.view.labels[0] and shown[-1] == 0 and len(shown) >= 2
     assert all(later <= earlier for earlier, later in zip(shown, shown[1:], strict=False))
     assert app.play_button.label == "Play"
+    shown.clear()
+    app.move_target((0.3, -1.0))  # a move in one go (not a drag) animates too
+    settle(app)
+    assert shown[0] == app.solved.view.labels[0] and shown[-1] == 0
     app.toggle_play()  # at the end: plays again from t = T
     settle(app)
     assert app.state == app.solved.view.num_states - 1

@@ -40,6 +40,25 @@ def test_the_newest_request_wins_and_stale_ones_are_dropped():
     worker.close()
 
 
+def test_with_a_grace_a_stale_result_is_drawn_rather_than_nothing():
+    worker = LatestWorker(stale_grace=0.0)  # the screen has waited long enough already
+    started, release = threading.Event(), threading.Event()
+    delivered = []
+
+    def slow():
+        started.set()
+        assert release.wait(10)
+        return "old"
+
+    worker.submit(slow, lambda ticket, result: delivered.append(result))
+    assert started.wait(10)
+    worker.submit(lambda: "new", lambda ticket, result: delivered.append(result))
+    release.set()
+    assert worker.wait_idle(10)
+    assert delivered == ["old", "new"] and worker.stats.late == 1 and worker.stats.stale == 0
+    worker.close()
+
+
 def test_a_failing_job_is_reported_and_the_worker_goes_on():
     worker = LatestWorker()
     errors, delivered = [], []
