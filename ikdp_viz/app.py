@@ -119,7 +119,8 @@ class VizApp:
         self.server = server
         self.solver = solver
         self.checkpoint_folder = checkpoint_folder
-        self.checkpoints = dict(checkpoints or {"model": Path(solver.metadata.get("path", "model"))})
+        given = Path(solver.metadata.get("path", "model.pt"))
+        self.checkpoints = dict(checkpoints or {given.name: given})  # dropdown label -> path
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
         self.player = Player(self._draw_from_player)
         self._lock = threading.RLock()  # guards what is drawn; held while a frame is written
@@ -129,7 +130,6 @@ class VizApp:
         self._replay_pending = False  # a replay thread is about to start the animation
         self.state = 0  # index of the state on screen
         self.target, self.target_clamped = self._initial_target(target), False
-        self.last_seed = 0
         self.error: str | None = None  # the last solve's failure, shown in the panel
         self.latencies: collections.deque[tuple[float, float]] = collections.deque(maxlen=100_000)
         self._arm_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes

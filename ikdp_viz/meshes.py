@@ -25,7 +25,7 @@ class ArmSizes:
     @classmethod
     def for_lengths(cls, lengths) -> ArmSizes:
         mean = float(np.mean(lengths))
-        return cls(link=0.045 * mean, joint=0.075 * mean, tip=0.085 * mean, base=0.16 * mean, cross=0.24 * mean)
+        return cls(link=0.045 * mean, joint=0.075 * mean, tip=0.085 * mean, base=0.16 * mean, cross=0.3 * mean)
 
 
 def link_mesh(radius: float) -> trimesh.Trimesh:

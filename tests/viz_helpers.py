@@ -56,14 +56,22 @@ def settle(app: VizApp) -> None:
     assert app.wait_until_still(timeout=60), "the app did not finish solving and animating"
 
 
+def missing_browser(message: str) -> None:
+    """In CI (CI=true) a missing browser fails the test; elsewhere it skips it."""
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(message + " (CI=true: the browser tests must run)")
+    pytest.skip(message)
+
+
 def chromium_or_skip() -> str:
-    """Debian's chromium; in CI (CI=true) its absence fails the test instead of skipping it."""
+    """Debian's chromium, and Playwright to drive it."""
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        missing_browser("playwright is not installed")
     path = CHROMIUM if os.path.exists(CHROMIUM) else shutil.which("chromium")
     if path is None:
-        message = f"chromium not found at {CHROMIUM} or on PATH"
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(message + " (CI=true: the browser tests must run)")
-        pytest.skip(message)
+        missing_browser(f"chromium not found at {CHROMIUM} or on PATH")
     return path
 
 
