@@ -50,7 +50,7 @@ MAX_SAMPLES = 64
 DEFAULT_DDIM_STEPS = 20
 TARGET_RED = (220, 25, 25)
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
-STALE_GRACE = 0.25  # seconds: during a drag on a slow machine, draw a stale solve rather than nothing
+STALE_GRACE = 0.1  # seconds: during a drag on a slow machine, draw a stale solve rather than nothing
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
