@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 import torch
 import viser
-import viser.uplot
 
 import ikdp
-from ikdp_viz import meshes
+from ikdp_viz import meshes, readouts
+from ikdp_viz.panel import SAMPLERS, build_panel, highlight_options, plot_scales
 from ikdp_viz.player import Player
 from ikdp_viz.scene import (
     REFINED,
@@ -46,8 +46,6 @@ from ikdp_viz.scene import (
 )
 from ikdp_viz.solve_worker import LatestWorker
 
-MAX_SAMPLES = 64
-DEFAULT_DDIM_STEPS = 20
 TARGET_RED = (220, 25, 25)
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 STALE_GRACE = 0.1  # seconds: during a drag on a slow machine, draw a stale solve rather than nothing
@@ -135,7 +133,12 @@ class VizApp:
         self._arm_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
-        self._build_gui(animation_seconds)
+        self.panel = build_panel(
+            server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
+            checkpoint_labels=tuple(self.checkpoints), checkpoint_label=self._current_checkpoint_label(),
+            model_text=self._model_description(),
+        )  # fmt: skip
+        self._wire_panel()
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
         self._build_scene()
@@ -169,17 +172,18 @@ class VizApp:
 
     def request_solve(self, arrival: float | None = None, *, animate: bool = True) -> int:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""
-        if self.new_seed.value:
-            self.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
-        sampler = "ddim" if self.sampler.value == "DDIM" else "ddpm"
+        if self.panel.new_seed.value:
+            self.panel.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
+        sampler = self.panel.sampler.value.lower()
+        assert sampler.upper() in SAMPLERS, f"sampler: expected one of {SAMPLERS}, got {sampler!r}"
         request = SolveRequest(
             solver=self.solver,
             target=self.target.copy(),
-            num_samples=int(self.samples.value),
+            num_samples=int(self.panel.samples.value),
             sampler=sampler,
-            steps=int(self.ddim_steps.value) if sampler == "ddim" else None,
-            refine_steps=int(self.refine_steps.value) if self.refine.value else 0,
-            seed=int(self.seed.value),
+            steps=int(self.panel.ddim_steps.value) if sampler == "ddim" else None,
+            refine_steps=int(self.panel.refine_steps.value) if self.panel.refine.value else 0,
+            seed=int(self.panel.seed.value),
             arrival=time.perf_counter() if arrival is None else arrival,
             animate=animate,
         )
@@ -208,12 +212,12 @@ class VizApp:
         try:
             with self._lock:
                 self._animate_target = None
-                if self.solved is None or not self.play_on_move.value or self.duration.value <= 0:
+                if self.solved is None or not self.panel.play_on_move.value or self.panel.duration.value <= 0:
                     return
             self.player.pause()
             self.show_state(0)
             last = self.solved.view.num_states - 1
-            self.player.play(0, last, self.duration.value / max(last, 1), first_shown=True)
+            self.player.play(0, last, self.panel.duration.value / max(last, 1), first_shown=True)
             self._write_play_label()
         finally:
             self._replay_pending = False
@@ -242,18 +246,18 @@ class VizApp:
             self.solved, self.error = solved, None
             self._recolor()
             self._ensure_arm_nodes()
-            self._write_plot_scales()
+            self.panel.plot.scales = plot_scales(*readouts.error_range(solved.view.tip_error))
             self._write_refined()
             last = solved.view.num_states - 1
             released = self._animate_target is not None and np.array_equal(solved.request.target, self._animate_target)
             if released:
                 self._animate_target = None
             wanted = solved.request.animate or released
-            animate = wanted and self.play_on_move.value and self.duration.value > 0 and last > 0
+            animate = wanted and self.panel.play_on_move.value and self.panel.duration.value > 0 and last > 0
             self._draw_state(0 if animate else last)
             self.latencies.append((solved.request.arrival, time.perf_counter()))
         if animate:
-            self.player.play(0, last, self.duration.value / last, first_shown=True)
+            self.player.play(0, last, self.panel.duration.value / last, first_shown=True)
             self._write_play_label()
 
     def _show_error(self, ticket: int, error: BaseException) -> None:
@@ -284,7 +288,7 @@ class VizApp:
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         with self.server.atomic():
-            if self.show_trail.value:
+            if self.panel.show_trail.value:
                 points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
                 self.trail.points = points
                 self.trail.colors = segment_colors
@@ -306,10 +310,10 @@ class VizApp:
             self.refined_tips.visible = final_shown
             self._syncing = True
             try:
-                self.timestep.value = int(view.labels[state])
+                self.panel.timestep.value = int(view.labels[state])
             finally:
                 self._syncing = False
-            self.plot.data = error_curves(view, highlight, state)
+            self.panel.plot.data = error_curves(view, highlight, state)
             self._write_readouts()
             self._write_play_label()
 
@@ -322,9 +326,9 @@ class VizApp:
         view = self.solved.view if self.solved is not None else None
         if view is None:
             return 0
-        if self.highlight.value == "best":
+        if self.panel.highlight.value == "best":
             return view.best_sample()
-        return min(int(self.highlight.value), view.num_samples - 1)
+        return min(int(self.panel.highlight.value), view.num_samples - 1)
 
     # ---------------------------------------------------------------- scene
 
@@ -479,91 +483,21 @@ class VizApp:
 
     # ---------------------------------------------------------------- panel
 
-    def _build_gui(self, animation_seconds: float) -> None:
-        gui = self.server.gui
-        num_timesteps = self.solver.timesteps
-        with gui.add_folder("Target"):
-            self.target_text = gui.add_markdown("")
-        with gui.add_folder("Denoising"):
-            self.timestep = gui.add_slider(
-                "timestep t",
-                min=0,
-                max=num_timesteps,
-                step=1,
-                initial_value=num_timesteps,
-                hint="Diffusion time of the pose shown: T is pure noise, 0 the final pose",
-            )
-            self.previous_button = gui.add_button("Previous step (toward noise)", icon=viser.Icon.PLAYER_TRACK_PREV)
-            self.play_button = gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY)
-            self.next_button = gui.add_button("Next step (toward t = 0)", icon=viser.Icon.PLAYER_TRACK_NEXT)
-            self.duration = gui.add_number(
-                "duration (s)",
-                animation_seconds,
-                min=0.0,
-                max=30.0,
-                step=0.1,
-                hint="Time the animation takes from t = T to 0",
-            )
-            self.show_trail = gui.add_checkbox(
-                "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
-            )
-            self.play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
-        with gui.add_folder("Sampling"):
-            self.samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=16)
-            self.highlight = gui.add_dropdown("highlight", self._highlight_options(16), initial_value="best")
-            self.sampler = gui.add_dropdown("sampler", ("DDPM", "DDIM"), initial_value="DDPM")
-            self.ddim_steps = gui.add_slider(
-                "DDIM steps",
-                min=1,
-                max=num_timesteps,
-                step=1,
-                initial_value=min(DEFAULT_DDIM_STEPS, num_timesteps),
-                disabled=True,
-            )
-            self.seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
-            self.new_seed = gui.add_checkbox("new seed each move", False)
-            self.refine = gui.add_checkbox(
-                "refine (DLS)", False, hint="Damped-least-squares polish, drawn in green beside the raw pose"
-            )
-            self.refine_steps = gui.add_slider("refine steps", min=1, max=50, step=1, initial_value=5, disabled=True)
-        with gui.add_folder("Readouts"):
-            self.readout_text = gui.add_markdown("")
-            self.plot = gui.add_uplot(
-                data=(np.array([0.0, 1.0]), np.ones(2), np.ones(2), np.full(2, np.nan)),
-                series=(
-                    viser.uplot.Series(label="t"),
-                    viser.uplot.Series(label="median", stroke="#999999", width=1.5),
-                    viser.uplot.Series(label="highlighted", stroke="#1f5ad2", width=2),
-                    viser.uplot.Series(
-                        label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
-                    ),
-                ),
-                title="tip error vs timestep",
-                scales={
-                    "x": viser.uplot.Scale(time=False, dir=-1, auto=True),
-                    "y": viser.uplot.Scale(distr=3, range=(1e-3, 10.0)),
-                },
-                legend=viser.uplot.Legend(show=True),
-                aspect=1.5,
-            )
-        with gui.add_folder("Model"):
-            labels = tuple(self.checkpoints)
-            self.checkpoint = gui.add_dropdown("checkpoint", labels, initial_value=self._current_checkpoint_label())
-            self.model_text = gui.add_markdown(self._model_description())
-
-        self.timestep.on_update(self._on_timestep)
-        self.previous_button.on_click(lambda _: self._step_by(-1))
-        self.next_button.on_click(lambda _: self._step_by(+1))
-        self.play_button.on_click(lambda _: self.toggle_play())
-        self.show_trail.on_update(lambda _: self.show_state(self.state))
-        self.highlight.on_update(lambda _: self._on_highlight())
-        self.samples.on_update(lambda _: self._on_samples())
-        self.sampler.on_update(lambda _: self._on_sampler())
-        for handle in (self.ddim_steps, self.refine_steps):
+    def _wire_panel(self) -> None:
+        panel = self.panel
+        panel.timestep.on_update(self._on_timestep)
+        panel.previous_button.on_click(lambda _: self._step_by(-1))
+        panel.next_button.on_click(lambda _: self._step_by(+1))
+        panel.play_button.on_click(lambda _: self.toggle_play())
+        panel.show_trail.on_update(lambda _: self.show_state(self.state))
+        panel.highlight.on_update(lambda _: self._on_highlight())
+        panel.samples.on_update(lambda _: self._on_samples())
+        panel.sampler.on_update(lambda _: self._on_sampler())
+        for handle in (panel.ddim_steps, panel.refine_steps):
             handle.on_update(lambda _: self.request_solve())
-        self.seed.on_update(lambda event: None if event.client is None else self.request_solve())
-        self.refine.on_update(lambda _: self._on_refine())
-        self.checkpoint.on_update(lambda event: self._on_checkpoint(event))
+        panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
+        panel.refine.on_update(lambda _: self._on_refine())
+        panel.checkpoint.on_update(lambda _: self._on_checkpoint())
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         if event.client is None and self._syncing:
@@ -572,7 +506,7 @@ class VizApp:
             self.player.pause()
         with self._lock:
             if self.solved is not None:
-                self._draw_state(nearest_state(self.solved.view.labels, self.timestep.value))
+                self._draw_state(nearest_state(self.solved.view.labels, self.panel.timestep.value))
 
     def _step_by(self, delta: int) -> None:
         self.player.pause()
@@ -588,7 +522,7 @@ class VizApp:
             first = 0 if self.state >= last else self.state
             if first == 0:
                 self.show_state(0)
-            self.player.play(first, last, self.duration.value / max(last, 1), first_shown=True)
+            self.player.play(first, last, self.panel.duration.value / max(last, 1), first_shown=True)
         self._write_play_label()
 
     def _on_highlight(self) -> None:
@@ -598,92 +532,45 @@ class VizApp:
                 self._draw_state(self.state)
 
     def _on_samples(self) -> None:
-        options = self._highlight_options(int(self.samples.value))
-        current = self.highlight.value
-        self.highlight.options = options
+        options = highlight_options(int(self.panel.samples.value))
+        current = self.panel.highlight.value
+        self.panel.highlight.options = options
         if current not in options:
-            self.highlight.value = "best"
+            self.panel.highlight.value = "best"
         self.request_solve()
 
     def _on_sampler(self) -> None:
-        self.ddim_steps.disabled = self.sampler.value != "DDIM"
+        self.panel.ddim_steps.disabled = self.panel.sampler.value != "DDIM"
         self.request_solve()
 
     def _on_refine(self) -> None:
-        self.refine_steps.disabled = not self.refine.value
+        self.panel.refine_steps.disabled = not self.panel.refine.value
         self.request_solve()
-
-    @staticmethod
-    def _highlight_options(num_samples: int) -> tuple[str, ...]:
-        return ("best", *(str(index) for index in range(num_samples)))
 
     def _write_play_label(self) -> None:
         at_end = self.solved is None or self.state >= self.solved.view.num_states - 1
         playing = self.player.playing and not at_end  # the last frame is drawn while the player still runs
-        self.play_button.label = "Pause" if playing else "Play"
-        self.play_button.icon = viser.Icon.PLAYER_PAUSE if playing else viser.Icon.PLAYER_PLAY
+        self.panel.play_button.label = "Pause" if playing else "Play"
+        self.panel.play_button.icon = viser.Icon.PLAYER_PAUSE if playing else viser.Icon.PLAYER_PLAY
 
     def _write_target_text(self) -> None:
-        x, y = self.target
-        inner, outer = self.solver.reach
-        text = f"**Target** x = {x:+.3f}, y = {y:+.3f}"
-        if self.target_clamped:
-            boundary = outer if np.hypot(x, y) >= outer - 1e-9 else inner
-            text += f"  \n*Clamped to the workspace boundary* (r = {boundary:.2f}): the arm reaches no farther."
-        self.target_text.content = text
+        self.panel.target_text.content = readouts.target_text(self.target, self.target_clamped, self.solver.reach)
 
     def _write_readouts(self) -> None:
         solved = self.solved
         if solved is None:
-            self.readout_text.content = (
-                f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
-            )
+            failed = f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
+            self.panel.readout_text.content = failed
             return
-        view, request = solved.view, solved.request
-        state, last, highlight = self.state, view.num_states - 1, self.highlight_index()
-        lines = [
-            f"**Step** {state} of {last} (t = {int(view.labels[state])})",
-            f"**Tip error**, sample {highlight}: {view.tip_error[state, highlight]:.4f} now, "
-            f"{view.tip_error[last, highlight]:.4f} at t = 0",
-            f"median of K = {view.num_samples}: {np.median(view.tip_error[state]):.4f} now, "
-            f"{np.median(view.tip_error[last]):.4f} at t = 0",
-        ]
-        if view.refined:
-            lines.append(f"refined ({request.refine_steps} DLS steps): {view.final_tip_error[highlight]:.2e}")
-        steps = f"{request.steps} steps" if request.sampler == "ddim" else f"{last} steps"
-        lines.append(
-            f"**Solve** {1000 * solved.solve_seconds:.1f} ms ({request.sampler.upper()}, {steps}, seed {request.seed})"
-        )
-        if self.error:
-            lines.append(f"**Last solve failed** {self.error}")
-        self.readout_text.content = "  \n".join(lines)
-
-    def _write_plot_scales(self) -> None:
-        view = self.solved.view
-        positive = view.tip_error[view.tip_error > 0]
-        low = max(1e-6, float(positive.min()) / 2) if positive.size else 1e-3
-        high = max(float(view.tip_error.max()) * 2, low * 10)
-        self.plot.scales = {
-            "x": viser.uplot.Scale(time=False, dir=-1, auto=True),
-            "y": viser.uplot.Scale(distr=3, range=(low, high)),
-        }
+        request = solved.request
+        self.panel.readout_text.content = readouts.solve_text(
+            solved.view, self.state, self.highlight_index(), sampler=request.sampler, steps=request.steps,
+            seed=request.seed, refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, error=self.error,
+        )  # fmt: skip
 
     def _model_description(self) -> str:
-        metadata = self.solver.metadata
-        model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
-        denoiser = model.get("denoiser", {}).get("kind", "?")
-        lengths = ", ".join(f"{length:g}" for length in self.solver.lengths)
-        lines = [
-            f"**N** = {self.solver.num_links} links (lengths {lengths}), **T** = {self.solver.timesteps}",
-            f"**denoiser** {denoiser}, representation {model.get('representation', '?')}, "
-            f"schedule {model.get('schedule', {}).get('kind', '?')}",
-        ]
-        if "tip_error_median" in metrics:
-            lines.append(
-                f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
-                f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} ({metrics.get('sampler', '')})"
-            )
-        return "  \n".join(lines)
+        solver = self.solver
+        return readouts.model_text(solver.num_links, solver.lengths, solver.timesteps, solver.metadata)
 
     # ---------------------------------------------------------------- checkpoints
 
@@ -704,10 +591,10 @@ class VizApp:
         found = list_checkpoints(self.checkpoint_folder)
         found.setdefault(current, self.checkpoints[current])
         self.checkpoints = found
-        self.checkpoint.options = tuple(found)
+        self.panel.checkpoint.options = tuple(found)
 
-    def _on_checkpoint(self, event: viser.GuiEvent) -> None:
-        label = self.checkpoint.value
+    def _on_checkpoint(self) -> None:
+        label = self.panel.checkpoint.value
         current = self._current_checkpoint_label()
         if label == current:
             return
@@ -718,8 +605,8 @@ class VizApp:
         try:
             solver = ikdp.load(path, device=self.solver.device)
         except (ikdp.CheckpointError, OSError, RuntimeError) as error:
-            self.model_text.content = f"**Could not load** {error}  \n\n" + self._model_description()
-            self.checkpoint.value = self._current_checkpoint_label()
+            self.panel.model_text.content = f"**Could not load** {error}  \n\n" + self._model_description()
+            self.panel.checkpoint.value = self._current_checkpoint_label()
             return False
         self.player.pause()
         with self._lock:
@@ -729,11 +616,11 @@ class VizApp:
             self.target = self._initial_target(self.target)
             self._build_scene()
             num_timesteps = solver.timesteps
-            self.timestep.max = num_timesteps
-            self.ddim_steps.max = num_timesteps
-            self.ddim_steps.value = min(self.ddim_steps.value, num_timesteps)
-            self.model_text.content = self._model_description()
-            self.checkpoint.value = self._current_checkpoint_label()
+            self.panel.timestep.max = num_timesteps
+            self.panel.ddim_steps.max = num_timesteps
+            self.panel.ddim_steps.value = min(self.panel.ddim_steps.value, num_timesteps)
+            self.panel.model_text.content = self._model_description()
+            self.panel.checkpoint.value = self._current_checkpoint_label()
         self.move_target(self.target)
         return True
 

@@ -46,8 +46,8 @@ def main(argv: list[str] | None = None) -> None:
     app = VizApp(
         server, solver, checkpoints=checkpoints, solve_now=False, animation_seconds=0.0, target=tuple(args.target)
     )
-    app.samples.value = args.samples
-    app.seed.value = args.seed
+    app.panel.samples.value = args.samples
+    app.panel.seed.value = args.seed
     app.move_target(args.target)
     app.wait_until_still(60)
     try:

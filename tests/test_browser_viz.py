@@ -143,7 +143,7 @@ def test_moving_the_timestep_slider_in_the_page_changes_the_picture(viewer):
     deadline = time.monotonic() + TIMEOUT
     while app.state != 0 and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert app.state == 0 and app.timestep.value == app.solver.timesteps
+    assert app.state == 0 and app.panel.timestep.value == app.solver.timesteps
     noisy = viewer.wait_for_picture(lambda image: dark_fraction(image, pixels) < 0.3)
     assert dark_fraction(final, pixels) >= 0.8 and dark_fraction(noisy, pixels) < 0.3
     changed = np.abs(noisy.astype(int) - final.astype(int)).max(axis=-1) > 60
@@ -186,7 +186,7 @@ def test_two_tabs_see_one_scene_and_closing_one_mid_animation_breaks_nothing(vie
     pixels = viewer.final_link_pixels()
     shown = viewer.wait_for_picture(lambda image: dark_fraction(image, pixels) >= 0.8, page=second)
     assert dark_fraction(shown, pixels) >= 0.8  # the second tab shows the same arm
-    app.duration.value = 1.5
+    app.panel.duration.value = 1.5
     try:
         drag_gizmo(app, -1.0, 1.6, phase="end")  # a move in one go: its solve is animated
         deadline = time.monotonic() + TIMEOUT
@@ -196,7 +196,7 @@ def test_two_tabs_see_one_scene_and_closing_one_mid_animation_breaks_nothing(vie
         second.close()  # mid-animation
         settle(app)
     finally:
-        app.duration.value = 0.0
+        app.panel.duration.value = 0.0
     assert app.state == app.solved.view.num_states - 1 and np.allclose(app.solved.view.target, [-1.0, 1.6])
     pixels = viewer.final_link_pixels()
     after = viewer.wait_for_picture(lambda image: dark_fraction(image, pixels) >= 0.8)

@@ -60,9 +60,9 @@ def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, so
     settle(app)
     view = app.solved.view
     assert np.allclose(view.target, [1.1, -0.7]) and app.state == view.num_states - 1
-    assert app.timestep.value == 0
+    assert app.panel.timestep.value == 0
     # the same solve, independently: the app draws what the public API returns for this target and seed
-    generator = torch.Generator().manual_seed(int(app.seed.value))
+    generator = torch.Generator().manual_seed(int(app.panel.seed.value))
     out = solver.solve((1.1, -0.7), num_samples=16, generator=generator, return_trajectory=True)
     tips = final_polylines(app)[:, -1, 1]  # (K, 2) the end of each final polyline
     tip_error = np.linalg.norm(tips - [1.1, -0.7], axis=-1)
@@ -70,31 +70,31 @@ def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, so
     expected = ikdp.forward_kinematics(out.raw_angles[0].double()).numpy()
     assert np.allclose(drawn_joints(app), expected, atol=1e-4)
     assert app.links.batched_positions.shape == (16 * 3, 3) and app.tips.batched_positions.shape == (16, 3)
-    assert "x = +1.100, y = -0.700" in app.target_text.content and "Clamped" not in app.target_text.content
+    assert "x = +1.100, y = -0.700" in app.panel.target_text.content and "Clamped" not in app.panel.target_text.content
 
 
 def test_scrubbing_the_timestep_slider_shows_that_state(app):
     view = app.solved.view
     final = drawn_joints(app).copy()
-    app.timestep.value = 7
+    app.panel.timestep.value = 7
     state = int(np.flatnonzero(view.labels == 7)[0])
     assert app.state == state
     shown = drawn_joints(app)
     assert not np.allclose(shown, final)
     assert np.allclose(shown, view.joints[state], atol=1e-5)
     assert app.trail.points.shape[0] == (state + 1) * view.num_samples * view.num_links
-    assert f"**Step** {state} of {view.num_states - 1} (t = 7)" in app.readout_text.content
-    t, median, chosen, marker = app.plot.data
+    assert f"**Step** {state} of {view.num_states - 1} (t = 7)" in app.panel.readout_text.content
+    t, median, chosen, marker = app.panel.plot.data
     assert np.isfinite(marker).sum() == 1 and t[np.isfinite(marker)][0] == 7
 
 
 def test_previous_and_next_buttons_step_through_the_states(app):
     last = app.solved.view.num_states - 1
-    app.previous_button.value = True  # what a click does
-    assert app.state == last - 1 and app.timestep.value == 1
-    app.next_button.value = True
-    app.next_button.value = True  # past the end: stays on the final pose
-    assert app.state == last and app.timestep.value == 0
+    app.panel.previous_button.value = True  # what a click does
+    assert app.state == last - 1 and app.panel.timestep.value == 1
+    app.panel.next_button.value = True
+    app.panel.next_button.value = True  # past the end: stays on the final pose
+    assert app.state == last and app.panel.timestep.value == 0
 
 
 def test_a_target_past_the_boundary_is_clamped_and_the_panel_says_so(app, solver):
@@ -103,48 +103,48 @@ def test_a_target_past_the_boundary_is_clamped_and_the_panel_says_so(app, solver
     outer = solver.reach[1]
     assert np.allclose(app.gizmo.position, [outer, 0.0, 0.0])
     assert np.allclose(app.solved.view.target, [outer, 0.0])
-    assert "Clamped to the workspace boundary" in app.target_text.content
+    assert "Clamped to the workspace boundary" in app.panel.target_text.content
 
 
 def test_the_trail_toggle_shows_all_intermediate_poses_or_none(app):
     view = app.solved.view
     assert app.trail.visible and app.trail.points.shape[0] == view.num_states * view.num_samples * view.num_links
-    app.show_trail.value = False
+    app.panel.show_trail.value = False
     assert not app.trail.visible and app.links.visible
-    app.show_trail.value = True
+    app.panel.show_trail.value = True
     assert app.trail.visible
 
 
 def test_samples_and_highlight_change_what_is_drawn(app):
-    app.samples.value = 5
+    app.panel.samples.value = 5
     settle(app)
     assert app.solved.view.num_samples == 5 and app.links.batched_positions.shape == (5 * 3, 3)
-    assert app.highlight.options == ("best", "0", "1", "2", "3", "4")
-    app.highlight.value = "3"
+    assert app.panel.highlight.options == ("best", "0", "1", "2", "3", "4")
+    app.panel.highlight.value = "3"
     colors = app.links.batched_colors.reshape(5, 3, 3)
     assert (colors[3] != colors[0]).any() and (colors[0] == colors[1]).all()
-    assert "sample 3" in app.readout_text.content
+    assert "sample 3" in app.panel.readout_text.content
 
 
 def test_ddim_with_fewer_steps_gives_fewer_states(app):
-    app.ddim_steps.value = 5
-    app.sampler.value = "DDIM"
+    app.panel.ddim_steps.value = 5
+    app.panel.sampler.value = "DDIM"
     settle(app)
     view = app.solved.view
-    assert view.num_states == 6 and view.labels[0] == app.timestep.max and view.labels[-1] == 0
-    assert not app.ddim_steps.disabled and "DDIM, 5 steps" in app.readout_text.content
-    app.timestep.value = view.labels[2] + 1  # between two visited states: the nearest one is shown
+    assert view.num_states == 6 and view.labels[0] == app.panel.timestep.max and view.labels[-1] == 0
+    assert not app.panel.ddim_steps.disabled and "DDIM, 5 steps" in app.panel.readout_text.content
+    app.panel.timestep.value = view.labels[2] + 1  # between two visited states: the nearest one is shown
     assert app.state == 2
 
 
 def test_refine_draws_the_polished_pose_beside_the_raw_one(app, solver):
-    app.refine.value = True
+    app.panel.refine.value = True
     settle(app)
     view = app.solved.view
     assert view.refined and app.refined_lines.visible and app.refined_tips.visible
     assert np.allclose(app.refined_tips.batched_positions[:, :2], view.final_joints[:, -1], atol=1e-5)
     assert np.median(view.final_tip_error) < np.median(view.tip_error[-1])  # the polish helps
-    app.timestep.value = 5
+    app.panel.timestep.value = 5
     assert not app.refined_lines.visible  # only beside the final pose
 
 
@@ -156,11 +156,11 @@ def test_a_fixed_seed_repeats_the_solve_and_new_seed_each_move_changes_it(app):
     drag_gizmo(app, 0.5, 1.5)
     settle(app)
     assert np.array_equal(app.solved.view.joints, first)
-    app.new_seed.value = True
+    app.panel.new_seed.value = True
     drag_gizmo(app, 0.6, 1.5)
     settle(app)
     seed = app.solved.request.seed
-    assert seed == app.seed.value and f"seed {seed}" in app.readout_text.content
+    assert seed == app.panel.seed.value and f"seed {seed}" in app.panel.readout_text.content
 
 
 def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(app, solver, monkeypatch):
@@ -181,8 +181,8 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
     assert entered.wait(30)  # this solve now blocks the worker
     drag_gizmo(app, 0.0, 1.5)  # waits, then is replaced
     drag_gizmo(app, -1.2, 0.4)  # the newest
-    app.timestep.value = 3  # the panel still answers, on the previous solve
-    assert "x = -1.200, y = +0.400" in app.target_text.content and app.state == app.solved.view.num_states - 4
+    app.panel.timestep.value = 3  # the panel still answers, on the previous solve
+    assert "x = -1.200, y = +0.400" in app.panel.target_text.content and app.state == app.solved.view.num_states - 4
     release.set()
     settle(app)
     assert np.allclose(app.solved.view.target, [-1.2, 0.4])
@@ -191,8 +191,8 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
 
 def test_a_drag_shows_each_final_pose_at_once_and_the_release_plays_the_denoising(app):
     shown = []
-    app.timestep.on_update(lambda event: shown.append(app.timestep.value))
-    app.duration.value = 0.3
+    app.panel.timestep.on_update(lambda event: shown.append(app.panel.timestep.value))
+    app.panel.duration.value = 0.3
     drag_gizmo(app, -0.4, 1.2)  # mid-drag: the arm follows at its final pose
     settle(app)
     assert np.allclose(app.solved.view.target, [-0.4, 1.2]) and app.state == app.solved.view.num_states - 1
@@ -201,7 +201,7 @@ def test_a_drag_shows_each_final_pose_at_once_and_the_release_plays_the_denoisin
     settle(app)
     assert shown[0] == app.solved.view.labels[0] and shown[-1] == 0 and len(shown) >= 2
     assert all(later <= earlier for earlier, later in zip(shown, shown[1:], strict=False))
-    assert app.play_button.label == "Play"
+    assert app.panel.play_button.label == "Play"
     shown.clear()
     app.move_target((0.3, -1.0))  # a move in one go (not a drag) animates too
     settle(app)
@@ -215,16 +215,16 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     junk = tmp_path / "junk.pt"
     junk.write_text("not a checkpoint")
     app.checkpoints = {"tiny.pt": Path(tiny_checkpoint), "two.pt": Path(two_link_checkpoint), "junk.pt": junk}
-    app.checkpoint.options = tuple(app.checkpoints)
-    app.checkpoint.value = "two.pt"
+    app.panel.checkpoint.options = tuple(app.checkpoints)
+    app.panel.checkpoint.value = "two.pt"
     settle(app)
     assert app.solver.num_links == 2 and app.solved.view.num_links == 2
     assert app.links.batched_positions.shape == (16 * 2, 3) and app.joints.batched_positions.shape == (16 * 3, 3)
-    assert app.timestep.max == 12 and app.solved.view.num_states == 13
-    assert "**N** = 2 links" in app.model_text.content
-    app.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
-    assert app.solver.num_links == 2 and app.checkpoint.value == "two.pt"
-    assert "Could not load" in app.model_text.content and "junk.pt" in app.model_text.content
+    assert app.panel.timestep.max == 12 and app.solved.view.num_states == 13
+    assert "**N** = 2 links" in app.panel.model_text.content
+    app.panel.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
+    assert app.solver.num_links == 2 and app.panel.checkpoint.value == "two.pt"
+    assert "Could not load" in app.panel.model_text.content and "junk.pt" in app.panel.model_text.content
 
 
 def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):

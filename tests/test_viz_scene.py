@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 import torch
+from viz_helpers import hand_made_result
 
 import ikdp
-from ikdp import SolveResult
 from ikdp_viz import meshes
 from ikdp_viz.scene import (
     ACCENT_DARK,
@@ -44,31 +44,6 @@ def rotate(wxyz: np.ndarray, vector: np.ndarray) -> np.ndarray:
     w, xyz = wxyz[..., :1], wxyz[..., 1:]
     t = 2 * np.cross(xyz, vector)
     return vector + w * t + np.cross(xyz, t)
-
-
-def hand_made_result() -> SolveResult:
-    """N=2 unit links, K=2 samples, S=2 steps, headings chosen so every joint is known in closed form."""
-    half_pi = math.pi / 2
-    trajectory = torch.tensor(
-        [
-            [[[half_pi, half_pi], [math.pi, 0.0]]],  # t = T: straight up; folded back onto the base
-            [[[0.0, half_pi], [0.0, -half_pi]]],  # an elbow
-            [[[0.0, 0.0], [half_pi, 0.0]]],  # final: straight along +x; an L
-        ],
-        dtype=torch.float64,
-    )  # (S+1, B=1, K=2, N=2)
-    final = trajectory[-1]
-    target = torch.tensor([[2.0, 0.0]], dtype=torch.float64)
-    error = (ikdp.tip_position(final) - target[:, None]).norm(dim=-1)
-    return SolveResult(
-        angles=final,
-        tip_error=error,
-        trajectory=trajectory,
-        timesteps=[1, 0],
-        reachable=torch.tensor([True]),
-        raw_angles=final,
-        raw_tip_error=error,
-    )
 
 
 def test_fade_colors_run_from_faint_to_dark_monotonically():

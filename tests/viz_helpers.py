@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import viser
+import torch
 
 import ikdp
-from ikdp_viz.app import VizApp
+from ikdp import SolveResult
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -33,6 +33,10 @@ NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
 @contextlib.contextmanager
 def running_app(solver: ikdp.Solver, **options):
     """A VizApp on a fresh viser server bound to a free local port; closed on exit."""
+    import viser  # here, so the scene tests that share these helpers never import viser
+
+    from ikdp_viz.app import VizApp
+
     with contextlib.redirect_stdout(io.StringIO()):  # viser's banner
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = VizApp(server, solver, **options)
@@ -44,15 +48,17 @@ def running_app(solver: ikdp.Solver, **options):
             server.stop()
 
 
-def drag_gizmo(app: VizApp, x: float, y: float, phase: str = "update") -> None:
+def drag_gizmo(app, x: float, y: float, phase: str = "update") -> None:
     """Do what viser does when a browser drags the target's gizmo: set its pose, then fire its callback."""
+    import viser
+
     app.gizmo.position = (x, y, 0.0)
     event = viser.TransformControlsEvent(client=None, client_id=None, target=app.gizmo, phase=phase)
     loop = app.server.get_event_loop()
     asyncio.run_coroutine_threadsafe(app.on_gizmo_update(event), loop).result(timeout=10)
 
 
-def settle(app: VizApp) -> None:
+def settle(app) -> None:
     assert app.wait_until_still(timeout=60), "the app did not finish solving and animating"
 
 
@@ -84,7 +90,7 @@ def canvas_box(page) -> tuple[float, float, float, float]:
     return tuple(max(boxes, key=lambda box: box[2] * box[3]))
 
 
-def project(app: VizApp, box, points: np.ndarray) -> np.ndarray:
+def project(app, box, points: np.ndarray) -> np.ndarray:
     """World points (..., 2 or 3) -> page pixels (..., 2) through the app's initial camera (top-down pinhole)."""
     points = np.asarray(points, dtype=np.float64)
     heights = points[..., 2] if points.shape[-1] == 3 else np.zeros(points.shape[:-1])
@@ -118,3 +124,28 @@ def read_png(data: bytes) -> np.ndarray:
 def write_png(data: bytes, path: Path) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     Path(path).write_bytes(data)
+
+
+def hand_made_result() -> SolveResult:
+    """N=2 unit links, K=2 samples, S=2 steps, headings chosen so every joint is known in closed form."""
+    half_pi = math.pi / 2
+    trajectory = torch.tensor(
+        [
+            [[[half_pi, half_pi], [math.pi, 0.0]]],  # t = T: straight up; folded back onto the base
+            [[[0.0, half_pi], [0.0, -half_pi]]],  # an elbow
+            [[[0.0, 0.0], [half_pi, 0.0]]],  # final: straight along +x; an L
+        ],
+        dtype=torch.float64,
+    )  # (S+1, B=1, K=2, N=2)
+    final = trajectory[-1]
+    target = torch.tensor([[2.0, 0.0]], dtype=torch.float64)
+    error = (ikdp.tip_position(final) - target[:, None]).norm(dim=-1)
+    return SolveResult(
+        angles=final,
+        tip_error=error,
+        trajectory=trajectory,
+        timesteps=[1, 0],
+        reachable=torch.tensor([True]),
+        raw_angles=final,
+        raw_tip_error=error,
+    )

@@ -1,0 +1,127 @@
+"""The viewer's panel: every viser GUI control, created in one place and handed to the app as one object.
+
+The app wires the callbacks; this file only lays the controls out, in the order
+a user reads them: the target, the denoising (timestep, playback), the sampling
+settings, the readouts and plot, the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+import viser.uplot
+
+MAX_SAMPLES = 64
+DEFAULT_SAMPLES = 16
+DEFAULT_DDIM_STEPS = 20
+DEFAULT_REFINE_STEPS = 5
+SAMPLERS = ("DDPM", "DDIM")  # shown names; the solver's are their lower case
+
+
+def highlight_options(num_samples: int) -> tuple[str, ...]:
+    """The highlight dropdown: the sample with the smallest final tip error, or one by index."""
+    return ("best", *(str(index) for index in range(num_samples)))
+
+
+def plot_scales(low: float, high: float) -> dict:
+    """Tip error (log y) against diffusion time, T on the left as in the denoising's order."""
+    return {
+        "x": viser.uplot.Scale(time=False, dir=-1, auto=True),
+        "y": viser.uplot.Scale(distr=3, range=(low, high)),
+    }
+
+
+@dataclass
+class Panel:
+    target_text: viser.GuiMarkdownHandle
+    timestep: viser.GuiSliderHandle
+    previous_button: viser.GuiButtonHandle
+    play_button: viser.GuiButtonHandle
+    next_button: viser.GuiButtonHandle
+    duration: viser.GuiNumberHandle
+    show_trail: viser.GuiCheckboxHandle
+    play_on_move: viser.GuiCheckboxHandle
+    samples: viser.GuiSliderHandle
+    highlight: viser.GuiDropdownHandle
+    sampler: viser.GuiDropdownHandle
+    ddim_steps: viser.GuiSliderHandle
+    seed: viser.GuiNumberHandle
+    new_seed: viser.GuiCheckboxHandle
+    refine: viser.GuiCheckboxHandle
+    refine_steps: viser.GuiSliderHandle
+    readout_text: viser.GuiMarkdownHandle
+    plot: viser.GuiUplotHandle
+    checkpoint: viser.GuiDropdownHandle
+    model_text: viser.GuiMarkdownHandle
+
+
+def build_panel(
+    gui: viser.GuiApi,
+    *,
+    num_timesteps: int,
+    animation_seconds: float,
+    checkpoint_labels: tuple[str, ...],
+    checkpoint_label: str,
+    model_text: str,
+) -> Panel:
+    with gui.add_folder("Target"):
+        target_text = gui.add_markdown("")
+    with gui.add_folder("Denoising"):
+        timestep = gui.add_slider(
+            "timestep t", min=0, max=num_timesteps, step=1, initial_value=num_timesteps,
+            hint="Diffusion time of the pose shown: T is pure noise, 0 the final pose",
+        )  # fmt: skip
+        previous_button = gui.add_button("Previous step (toward noise)", icon=viser.Icon.PLAYER_TRACK_PREV)
+        play_button = gui.add_button("Play", icon=viser.Icon.PLAYER_PLAY)
+        next_button = gui.add_button("Next step (toward t = 0)", icon=viser.Icon.PLAYER_TRACK_NEXT)
+        duration = gui.add_number(
+            "duration (s)", animation_seconds, min=0.0, max=30.0, step=0.1,
+            hint="Time the animation takes from t = T to 0",
+        )  # fmt: skip
+        show_trail = gui.add_checkbox(
+            "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
+        )
+        play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+    with gui.add_folder("Sampling"):
+        samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
+        highlight = gui.add_dropdown("highlight", highlight_options(DEFAULT_SAMPLES), initial_value="best")
+        sampler = gui.add_dropdown("sampler", SAMPLERS, initial_value="DDPM")
+        ddim_steps = gui.add_slider(
+            "DDIM steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_DDIM_STEPS, num_timesteps),
+            disabled=True,
+        )  # fmt: skip
+        seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
+        new_seed = gui.add_checkbox("new seed each move", False)
+        refine = gui.add_checkbox(
+            "refine (DLS)", False, hint="Damped-least-squares polish, drawn in green beside the raw pose"
+        )
+        refine_steps = gui.add_slider(
+            "refine steps", min=1, max=50, step=1, initial_value=DEFAULT_REFINE_STEPS, disabled=True
+        )
+    with gui.add_folder("Readouts"):
+        readout_text = gui.add_markdown("Waiting for the first solve...")
+        plot = gui.add_uplot(
+            data=(np.array([0.0, 1.0]), np.ones(2), np.ones(2), np.full(2, np.nan)),
+            series=(
+                viser.uplot.Series(label="t"),
+                viser.uplot.Series(label="median", stroke="#999999", width=1.5),
+                viser.uplot.Series(label="highlighted", stroke="#1f5ad2", width=2),
+                viser.uplot.Series(
+                    label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
+                ),
+            ),
+            title="tip error vs timestep",
+            scales=plot_scales(1e-3, 10.0),
+            legend=viser.uplot.Legend(show=True),
+            aspect=1.5,
+        )
+    with gui.add_folder("Model"):
+        checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
+        model_markdown = gui.add_markdown(model_text)
+    return Panel(
+        target_text, timestep, previous_button, play_button, next_button, duration, show_trail, play_on_move,
+        samples, highlight, sampler, ddim_steps, seed, new_seed, refine, refine_steps, readout_text, plot,
+        checkpoint, model_markdown,
+    )  # fmt: skip

@@ -1,0 +1,71 @@
+"""The panel's texts (markdown) and the plot's range, from plain values: no viser here."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikdp_viz.scene import SolveView
+
+
+def target_text(target: np.ndarray, clamped: bool, reach: tuple[float, float]) -> str:
+    x, y = target
+    text = f"**Target** x = {x:+.3f}, y = {y:+.3f}"
+    if clamped:
+        inner, outer = reach
+        boundary = outer if np.hypot(x, y) >= outer - 1e-9 else inner
+        text += f"  \n*Clamped to the workspace boundary* (r = {boundary:.2f}): the arm reaches no farther."
+    return text
+
+
+def solve_text(
+    view: SolveView,
+    state: int,
+    highlight: int,
+    *,
+    sampler: str,
+    steps: int | None,
+    seed: int,
+    refine_steps: int,
+    solve_seconds: float,
+    error: str | None = None,
+) -> str:
+    """The step shown, the highlighted sample's tip error now and at t = 0, the K samples' median, the solve."""
+    last = view.num_states - 1
+    lines = [
+        f"**Step** {state} of {last} (t = {int(view.labels[state])})",
+        f"**Tip error**, sample {highlight}: {view.tip_error[state, highlight]:.4f} now, "
+        f"{view.tip_error[last, highlight]:.4f} at t = 0",
+        f"median of K = {view.num_samples}: {np.median(view.tip_error[state]):.4f} now, "
+        f"{np.median(view.tip_error[last]):.4f} at t = 0",
+    ]
+    if view.refined:
+        lines.append(f"refined ({refine_steps} DLS steps): {view.final_tip_error[highlight]:.2e}")
+    step_count = steps if sampler == "ddim" else last
+    lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler.upper()}, {step_count} steps, seed {seed})")
+    if error:
+        lines.append(f"**Last solve failed** {error}")
+    return "  \n".join(lines)
+
+
+def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> str:
+    """A checkpoint's arm, schedule, denoiser and the accuracy measured when it was saved."""
+    model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
+    shown_lengths = ", ".join(f"{length:g}" for length in lengths)
+    lines = [
+        f"**N** = {num_links} links (lengths {shown_lengths}), **T** = {num_timesteps}",
+        f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation "
+        f"{model.get('representation', '?')}, schedule {model.get('schedule', {}).get('kind', '?')}",
+    ]
+    if "tip_error_median" in metrics:
+        lines.append(
+            f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
+            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} ({metrics.get('sampler', '')})"
+        )
+    return "  \n".join(lines)
+
+
+def error_range(tip_error: np.ndarray) -> tuple[float, float]:
+    """A log-scale y range holding every tip error of a solve, with a margin."""
+    positive = tip_error[tip_error > 0]
+    low = max(1e-6, float(positive.min()) / 2) if positive.size else 1e-3
+    return low, max(float(tip_error.max()) * 2, low * 10)

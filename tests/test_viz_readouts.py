@@ -1,0 +1,45 @@
+"""The panel's texts and the plot's range, from plain values."""
+
+from __future__ import annotations
+
+import numpy as np
+from viz_helpers import hand_made_result
+
+from ikdp_viz.readouts import error_range, model_text, solve_text, target_text
+from ikdp_viz.scene import build_view
+
+
+def test_target_text_gives_the_coordinates_and_says_when_the_target_was_clamped():
+    assert target_text(np.array([1.25, -0.5]), False, (0.0, 4.0)) == "**Target** x = +1.250, y = -0.500"
+    clamped = target_text(np.array([4.0, 0.0]), True, (0.0, 4.0))
+    assert "Clamped to the workspace boundary* (r = 4.00)" in clamped
+    assert "(r = 1.00)" in target_text(np.array([0.0, 1.0]), True, (1.0, 3.0))  # pushed out to the inner circle
+
+
+def test_solve_text_reads_the_shown_step_and_the_end_for_the_highlighted_sample():
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))
+    text = solve_text(view, 1, 0, sampler="ddpm", steps=None, seed=7, refine_steps=0, solve_seconds=0.0314)
+    assert "**Step** 1 of 2 (t = 1)" in text
+    assert "sample 0: 1.4142 now, 0.0000 at t = 0" in text
+    assert "median of K = 2: 1.4142 now, 0.7071 at t = 0" in text
+    assert "**Solve** 31.4 ms (DDPM, 2 steps, seed 7)" in text and "refined" not in text
+    ddim = solve_text(view, 2, 1, sampler="ddim", steps=2, seed=0, refine_steps=0, solve_seconds=0.01, error="boom")
+    assert "(DDIM, 2 steps, seed 0)" in ddim and "**Last solve failed** boom" in ddim
+
+
+def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
+    metadata = {
+        "model": {"denoiser": {"kind": "film"}, "representation": "cossin", "schedule": {"kind": "linear"}},
+        "metrics": {"tip_error_median": 0.0267, "tip_error_p95": 0.048, "step": 10000, "sampler": "ddpm raw, K=1"},
+    }
+    text = model_text(4, (1.0, 1.0, 1.0, 1.0), 80, metadata)
+    assert "**N** = 4 links (lengths 1, 1, 1, 1), **T** = 80" in text
+    assert "**denoiser** film, representation cossin, schedule linear" in text
+    assert "10000 steps: median tip error 0.0267, p95 0.0480" in text
+    assert "trained" not in model_text(2, (1.0, 0.5), 20, {})
+
+
+def test_error_range_holds_every_error_on_a_log_axis():
+    low, high = error_range(np.array([[3.0, 0.5], [0.02, 0.0]]))
+    assert 0 < low <= 0.01 and high >= 6.0
+    assert error_range(np.zeros((2, 2))) == (1e-3, 1e-2)
