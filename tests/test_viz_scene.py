@@ -215,9 +215,10 @@ def test_importing_the_viewer_does_nothing_and_scene_code_never_imports_viser():
         "before = threading.active_count()\n"
         "out = io.StringIO()\n"
         "with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):\n"
-        "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.meshes, ikdp_viz.solve_worker, ikdp_viz.player\n"
+        "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.meshes, ikdp_viz.readouts\n"
+        "    import ikdp_viz.solve_worker, ikdp_viz.player\n"
         "    assert 'viser' not in sys.modules, 'scene-building code imported viser'\n"
-        "    import ikdp_viz.app, ikdp_viz.__main__\n"
+        "    import ikdp_viz.panel, ikdp_viz.app, ikdp_viz.__main__, ikdp_viz.screenshot\n"
         "assert out.getvalue() == '', out.getvalue()\n"
         "assert threading.active_count() == before, threading.enumerate()\n"
     )
