@@ -12,6 +12,7 @@ the geometry, and the solving is `ikdp`'s public API.
 from __future__ import annotations
 
 import collections
+import contextlib
 import random
 import threading
 import time
@@ -44,7 +45,7 @@ from ikdp_viz.scene import (
     trail_points,
     trail_until,
 )
-from ikdp_viz.solve_worker import LatestWorker
+from ikdp_viz.solve_worker import Cancelled, LatestWorker
 
 TARGET_RED = (220, 25, 25)
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
@@ -82,19 +83,48 @@ class Solved:
     solve_seconds: float  # solver.solve alone
 
 
-def solve(request: SolveRequest) -> Solved:
-    """Run the reverse diffusion for one request and build its drawable arrays (worker thread)."""
+@contextlib.contextmanager
+def stop_when(cancel: threading.Event, model: torch.nn.Module):
+    """Inside the block, the next call of one of `model`'s modules raises Cancelled once `cancel` is set.
+
+    `solver.solve` takes no cancellation hook, but every denoising step calls the
+    model's modules: a forward pre-hook on each stops a stale solve within one
+    step. Only this thread's calls are stopped.
+    """
+    thread = threading.get_ident()
+
+    def check(module, inputs):
+        if cancel.is_set() and threading.get_ident() == thread:
+            raise Cancelled
+
+    handles = [module.register_forward_pre_hook(check) for module in model.modules()]
+    try:
+        yield
+    finally:
+        for handle in handles:
+            handle.remove()
+
+
+def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solved:
+    """Run the reverse diffusion for one request and build its drawable arrays (worker thread).
+
+    Raises Cancelled, part-way, once `cancel` is set: a newer request has arrived.
+    """
+    cancel = cancel if cancel is not None else threading.Event()
+    if cancel.is_set():
+        raise Cancelled
     generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
     started = time.perf_counter()
-    result = request.solver.solve(
-        request.target,
-        num_samples=request.num_samples,
-        sampler=request.sampler,
-        steps=request.steps,
-        refine_steps=request.refine_steps,
-        generator=generator,
-        return_trajectory=True,
-    )
+    with stop_when(cancel, request.solver.model):
+        result = request.solver.solve(
+            request.target,
+            num_samples=request.num_samples,
+            sampler=request.sampler,
+            steps=request.steps,
+            refine_steps=request.refine_steps,
+            generator=generator,
+            return_trajectory=True,
+        )
     solve_seconds = time.perf_counter() - started
     view = build_view(result, request.solver.lengths, request.target)
     return Solved(request, view, trail_points(view.joints), solve_seconds)
@@ -129,7 +159,9 @@ class VizApp:
         self.state = 0  # index of the state on screen
         self.target, self.target_clamped = self._initial_target(target), False
         self.error: str | None = None  # the last solve's failure, shown in the panel
-        self.latencies: collections.deque[tuple[float, float]] = collections.deque(maxlen=100_000)
+        # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
+        # still the newest (False: drawn late by the worker's stale grace); for benchmarks
+        self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
         self._arm_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
@@ -189,7 +221,7 @@ class VizApp:
         )
         # The animation on screen is of a stale target now: stopping it leaves the CPU to the new solve.
         self.player.interrupt()
-        return self.worker.submit(lambda: solve(request), self._show_solved, self._show_error)
+        return self.worker.submit(lambda cancel: solve(request, cancel), self._show_solved, self._show_error)
 
     async def on_gizmo_update(self, event: viser.TransformControlsEvent) -> None:
         """Gizmo callback. Async so viser runs it on its event loop in arrival order; it only queues work."""
@@ -255,7 +287,7 @@ class VizApp:
             wanted = solved.request.animate or released
             animate = wanted and self.panel.play_on_move.value and self.panel.duration.value > 0 and last > 0
             self._draw_state(0 if animate else last)
-            self.latencies.append((solved.request.arrival, time.perf_counter()))
+            self.latencies.append((solved.request.arrival, time.perf_counter(), self.worker.is_newest(ticket)))
         if animate:
             self.player.play(0, last, self.panel.duration.value / last, first_shown=True)
             self._write_play_label()

@@ -16,7 +16,8 @@ from viz_helpers import drag_gizmo, running_app, settle
 
 import ikdp
 from ikdp.train import TrainConfig, train
-from ikdp_viz.app import list_checkpoints
+from ikdp_viz.app import SolveRequest, list_checkpoints, solve
+from ikdp_viz.solve_worker import Cancelled
 
 
 @pytest.fixture(scope="module")
@@ -176,7 +177,7 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
     monkeypatch.setattr(solver, "solve", slow_solve)
     monkeypatch.setattr(app.worker, "stale_grace", None)  # the blocked solve would otherwise be drawn late
     stats = app.worker.stats
-    before = (stats.replaced, stats.stale)
+    before = (stats.replaced, stats.cancelled, stats.delivered)
     drag_gizmo(app, 1.0, 1.0)
     assert entered.wait(30)  # this solve now blocks the worker
     drag_gizmo(app, 0.0, 1.5)  # waits, then is replaced
@@ -186,7 +187,34 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
     release.set()
     settle(app)
     assert np.allclose(app.solved.view.target, [-1.2, 0.4])
-    assert (stats.replaced - before[0], stats.stale - before[1]) == (1, 1)
+    # (0, 1.5) never ran; (1, 1) stopped at its first denoising step once released; only the newest was drawn
+    assert (stats.replaced - before[0], stats.cancelled - before[1], stats.delivered - before[2]) == (1, 1, 1)
+
+
+class CancelAfter(threading.Event):
+    """An event that reads as set from its `calls`-th check on: a newer request arriving mid-solve."""
+
+    def __init__(self, calls: int):
+        super().__init__()
+        self.checks, self.calls = 0, calls
+
+    def is_set(self) -> bool:
+        self.checks += 1
+        return self.checks >= self.calls
+
+
+def test_a_cancelled_solve_stops_part_way_and_leaves_the_model_as_it_was(solver):
+    request = SolveRequest(solver, np.array([1.0, 1.0]), 4, "ddpm", None, 0, 0, 0.0, True)
+    cancel = CancelAfter(20)
+    with pytest.raises(Cancelled):
+        solve(request, cancel)
+    assert cancel.checks == 20  # it stopped at the module call that saw the event set, well before the end
+    done = threading.Event()
+    done.set()
+    with pytest.raises(Cancelled):
+        solve(request, done)  # already stale: never starts
+    solved = solve(request, threading.Event())  # the hooks are gone: a normal solve runs to the end
+    assert solved.view.num_states == solver.timesteps + 1
 
 
 def test_a_drag_shows_each_final_pose_at_once_and_the_release_plays_the_denoising(app):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 
 from ikdp_viz.player import Player
-from ikdp_viz.solve_worker import LatestWorker
+from ikdp_viz.solve_worker import Cancelled, LatestWorker
 
 
 def test_the_newest_request_wins_and_stale_ones_are_dropped():
@@ -14,11 +14,11 @@ def test_the_newest_request_wins_and_stale_ones_are_dropped():
     ran, delivered = [], []
 
     def job(name):
-        def run():
+        def run(cancel):
             ran.append(name)
             if name == "first":
                 started.set()
-                assert release.wait(10)
+                assert release.wait(10)  # deaf to `cancel`: runs to the end
             return name
 
         return run
@@ -35,26 +35,46 @@ def test_the_newest_request_wins_and_stale_ones_are_dropped():
     assert worker.wait_idle(10)
     assert ran == ["first", "fourth"]  # second and third never ran
     assert delivered == [(4, "fourth")]  # first finished after newer requests: dropped as stale
-    assert (worker.stats.submitted, worker.stats.replaced, worker.stats.stale, worker.stats.delivered) == (4, 2, 1, 1)
+    stats = worker.stats
+    assert (stats.submitted, stats.replaced, stats.stale, stats.delivered, stats.cancelled) == (4, 2, 1, 1, 0)
     assert worker.is_newest(4) and not worker.is_newest(1)
     worker.close()
 
 
-def test_with_a_grace_a_stale_result_is_drawn_rather_than_nothing():
+def test_a_newer_request_stops_the_running_job():
+    worker = LatestWorker()
+    started, delivered = threading.Event(), []
+
+    def listening(cancel):
+        started.set()
+        assert cancel.wait(10)  # a solve checks between its steps
+        raise Cancelled
+
+    worker.submit(listening, lambda ticket, result: delivered.append(result))
+    assert started.wait(10)
+    worker.submit(lambda cancel: "newest", lambda ticket, result: delivered.append(result))
+    assert worker.wait_idle(10)
+    assert delivered == ["newest"] and worker.stats.cancelled == 1 and worker.stats.stale == 0
+    worker.close()
+
+
+def test_with_a_grace_a_starved_screen_gets_the_running_job_rather_than_nothing():
     worker = LatestWorker(stale_grace=0.0)  # the screen has waited long enough already
     started, release = threading.Event(), threading.Event()
-    delivered = []
+    delivered, cancelled = [], []
 
-    def slow():
+    def slow(cancel):
         started.set()
         assert release.wait(10)
+        cancelled.append(cancel.is_set())
         return "old"
 
     worker.submit(slow, lambda ticket, result: delivered.append(result))
     assert started.wait(10)
-    worker.submit(lambda: "new", lambda ticket, result: delivered.append(result))
+    worker.submit(lambda cancel: "new", lambda ticket, result: delivered.append(result))
     release.set()
     assert worker.wait_idle(10)
+    assert cancelled == [False]  # not asked to stop
     assert delivered == ["old", "new"] and worker.stats.late == 1 and worker.stats.stale == 0
     worker.close()
 
@@ -63,14 +83,14 @@ def test_a_failing_job_is_reported_and_the_worker_goes_on():
     worker = LatestWorker()
     errors, delivered = [], []
 
-    def broken():
+    def broken(cancel):
         raise RuntimeError("solver exploded")
 
     worker.submit(
         broken, lambda ticket, result: delivered.append(result), lambda ticket, error: errors.append(str(error))
     )
     assert worker.wait_idle(10)
-    worker.submit(lambda: 42, lambda ticket, result: delivered.append(result))
+    worker.submit(lambda cancel: 42, lambda ticket, result: delivered.append(result))
     assert worker.wait_idle(10)
     assert errors == ["solver exploded"] and delivered == [42] and worker.stats.failed == 1
     worker.close()
@@ -80,7 +100,7 @@ def test_a_worker_starts_its_thread_only_when_asked_and_stops_on_close():
     before = threading.active_count()
     worker = LatestWorker()
     assert threading.active_count() == before and worker.idle
-    worker.submit(lambda: None, lambda ticket, result: None)
+    worker.submit(lambda cancel: None, lambda ticket, result: None)
     assert worker.wait_idle(10)
     worker.close()
     assert threading.active_count() == before
