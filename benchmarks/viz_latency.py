@@ -16,10 +16,10 @@ target moves along a smooth closed curve inside the workspace.
 Measured:
   1. latency of an update drawn as the newest target: its arrival (callback
      entry) to the end of the `server.atomic()` block that puts its solve on
-     screen (stale solves drawn late by the worker's grace are counted apart);
+     screen (solves drawn after a newer update arrived are counted apart);
   2. latency of every update: its arrival to the first scene update for a target
      at least as new (a superseded update is served by a newer one);
-  3. the backlog: updates replaced before they started or dropped as stale, and
+  3. the backlog: updates replaced before they started or cancelled part-way, and
      the latency in the first and last thirds of the run (a growing backlog
      would show as growing latency);
   4. responsiveness: how late the event loop runs a probe scheduled every 100 ms;
@@ -185,7 +185,7 @@ class Stream:
         prober.join()
         duration = time.perf_counter() - started
 
-        # 1. updates drawn as the newest target; the stale ones drawn late (the grace) apart;
+        # 1. updates drawn as the newest target; those a newer update overtook during their solve apart;
         # 2. every update, served by the first drawing of a target at least as new
         drawn = sorted(app.latencies)
         newest_ms = [1000 * (shown - arrival) for arrival, shown, newest in drawn if newest]
@@ -226,7 +226,7 @@ def print_table(name: str, result: dict, solve_alone: dict) -> None:
     print(f"{'':34}{'median':>9}{'p95':>9}{'p99':>9}{'max':>9}{'count':>7}")
     for label, row in (
         ("arrival -> its scene update", result["drawn_update_latency"]),
-        ("  (stale, drawn late by the grace)", result["late_drawn_latency"]),
+        ("  (drawn though a newer one came)", result["late_drawn_latency"]),
         ("arrival -> newest scene update", result["every_update_latency"]),
         ("solve alone", solve_alone),
         ("event loop lag", result["event_loop_lag"]),
@@ -251,7 +251,7 @@ def render_markdown(runs: dict) -> str:
     """The docs' table of every labelled run in the JSON."""
     lines = [
         "| run | load avg | solve alone, median / p95 | mode | arrival -> its scene update, median / p95 "
-        "| arrival -> newest target on screen, median / p95 | drawn newest + late / sent | dropped stale / replaced "
+        "| arrival -> newest target on screen, median / p95 | drawn newest + late / sent | cancelled / replaced "
         "| memory growth |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
@@ -267,7 +267,7 @@ def render_markdown(runs: dict) -> str:
                 f"| {own['median_ms']:.0f} / **{own['p95_ms']:.0f}** ms "
                 f"| {every['median_ms']:.0f} / {every['p95_ms']:.0f} ms "
                 f"| {worker['delivered'] - worker['late']} + {worker['late']} / {result['updates_sent']} "
-                f"| {worker['stale']} / {worker['replaced']} "
+                f"| {worker['cancelled']} / {worker['replaced']} "
                 f"| {results['memory_mb']['growth']:+.1f} MB |"
             )
     return "\n".join(lines)
@@ -293,7 +293,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--output", default="benchmarks/results/viz_latency.json")
     parser.add_argument("--label", default="latest", help="name of this run in the JSON (other labels are kept)")
     parser.add_argument("--docs", default="docs/VIZ.md", help="markdown whose viz_latency block gets the table")
-    parser.add_argument("--stale-grace", type=float, default=None, help="override the app's stale grace (s)")
+    parser.add_argument("--stale-grace", type=float, default=None, help="override the worker's stale grace (s)")
+    parser.add_argument("--cancel-fraction", type=float, default=None, help="override the worker's cancel fraction")
     parser.add_argument("--docs-only", action="store_true", help="only re-render the docs table from the JSON")
     args = parser.parse_args(argv)
     if args.docs_only:
@@ -309,6 +310,8 @@ def main(argv: list[str] | None = None) -> None:
     app = VizApp(server, solver, animation_seconds=args.animation)
     if args.stale_grace is not None:
         app.worker.stale_grace = args.stale_grace
+    if args.cancel_fraction is not None:
+        app.worker.cancel_fraction = args.cancel_fraction
     client = SinkClient(server.get_port())
     stream = Stream(app, client)
 
@@ -354,6 +357,7 @@ def main(argv: list[str] | None = None) -> None:
             "update_path": "app.on_gizmo_update on viser's event loop (a decoded drag message's path)",
             "latency_end": "end of the server.atomic() block that first writes the update's solve",
             "stale_grace_s": app.worker.stale_grace,
+            "cancel_fraction": app.worker.cancel_fraction,
             "torch_threads": torch.get_num_threads(),
             "command": shlex.join(["python", "-m", "benchmarks.viz_latency", *command_line]),
         },

@@ -49,7 +49,7 @@ from ikdp_viz.solve_worker import Cancelled, LatestWorker
 
 TARGET_RED = (220, 25, 25)
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
-STALE_GRACE = 0.1  # seconds: during a drag on a slow machine, draw a stale solve rather than nothing
+STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
@@ -160,7 +160,7 @@ class VizApp:
         self.target, self.target_clamped = self._initial_target(target), False
         self.error: str | None = None  # the last solve's failure, shown in the panel
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
-        # still the newest (False: drawn late by the worker's stale grace); for benchmarks
+        # still the newest (False: a newer one arrived too late in its solve to cancel it); for benchmarks
         self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
         self._arm_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state

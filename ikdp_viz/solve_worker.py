@@ -1,18 +1,18 @@
 """A worker thread on which the newest request always wins.
 
 At most one job runs and at most one waits. Submitting replaces the waiting job
-(it is dropped unstarted) and asks the running one to stop: a job is handed a
-`cancel` event, and one that notices it raises `Cancelled` and is dropped. A job
-that finishes after a newer one was submitted is dropped too: its result is for
-a stale target. So requests never queue up behind a slow solve, and what gets
-drawn is always the newest target.
+(it is dropped unstarted), so requests never queue up behind a slow solve, and
+it stops the running job if that is less than `cancel_fraction` of the way
+through (judged by the last job's duration): a job is handed a `cancel` event,
+and one that notices it raises `Cancelled` and is dropped. A job further along
+is left to finish, because finishing it refreshes the screen sooner than
+starting over would; its result is delivered and the newest job starts right
+after. Results arrive in submission order, so nothing older ever replaces
+something newer on screen.
 
-One exception keeps a fast stream of requests from starving the screen when
-every job takes longer than the gap between requests (each would be cancelled
-or finish stale): with `stale_grace` set, once nothing has been delivered for
-that many seconds the running job is left to finish and its result is
-delivered. It is older than the newest request, never older than what is on
-screen.
+So that a fast stream of requests cannot cancel every job in turn and starve
+the screen, no job is cancelled once nothing has been delivered for
+`stale_grace` seconds.
 """
 
 from __future__ import annotations
@@ -35,20 +35,22 @@ class Cancelled(Exception):
 class WorkerStats:
     submitted: int = 0  # jobs handed to submit()
     replaced: int = 0  # dropped before they started: a newer job arrived while they waited
-    cancelled: int = 0  # stopped part-way: a newer job arrived while they ran
-    stale: int = 0  # ran to the end, but a newer job had arrived: result dropped
+    cancelled: int = 0  # stopped part-way: a newer job arrived early in their run
     delivered: int = 0  # results handed to on_done
-    late: int = 0  # of those, stale ones delivered because nothing had been for `stale_grace` seconds
+    late: int = 0  # of those, jobs a newer one arrived during, too late in their run to cancel them
     failed: int = 0  # jobs that raised
 
 
 class LatestWorker:
-    """Runs `job(cancel)` on one daemon thread, then `on_done(ticket, result)` there if it is still the newest."""
+    """Runs `job(cancel)` on one daemon thread, then `on_done(ticket, result)` there unless it was cancelled."""
 
-    def __init__(self, name: str = "ikdp-viz-solve", *, stale_grace: float | None = None):
+    def __init__(self, name: str = "ikdp-viz-solve", *, cancel_fraction: float = 0.5, stale_grace: float | None = None):
         self._name = name
-        self.stale_grace = stale_grace  # seconds without a delivery after which a running job is left to finish
+        self.cancel_fraction = cancel_fraction  # a running job this far through (of the last one's time) is kept
+        self.stale_grace = stale_grace  # seconds without a delivery after which no job is cancelled
         self._last_delivery = time.monotonic()
+        self._last_seconds: float | None = None  # how long the last finished job ran
+        self._started = 0.0  # when the running job started
         self._condition = threading.Condition()
         self._waiting: tuple[int, Job, Callable[[int, Any], None], Callable | None] | None = None
         self._newest = 0  # ticket of the newest submission
@@ -64,7 +66,7 @@ class LatestWorker:
         on_done: Callable[[int, Any], None],
         on_error: Callable[[int, BaseException], None] | None = None,
     ) -> int:
-        """Queue `job` in place of any waiting one and ask the running one to stop; returns its ticket."""
+        """Queue `job` in place of any waiting one, stop the running one if early in its run; returns its ticket."""
         with self._condition:
             if self._closed:
                 raise RuntimeError("LatestWorker: submit after close()")
@@ -73,7 +75,7 @@ class LatestWorker:
                 self.stats.replaced += 1
             self._waiting = (self._newest, job, on_done, on_error)
             self.stats.submitted += 1
-            if self._running is not None and not self._starving():
+            if self._running is not None and self._worth_cancelling():
                 self._cancel.set()
             if self._thread is None:
                 self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
@@ -107,8 +109,11 @@ class LatestWorker:
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout)
 
-    def _starving(self) -> bool:
-        return self.stale_grace is not None and time.monotonic() - self._last_delivery > self.stale_grace
+    def _worth_cancelling(self) -> bool:
+        now = time.monotonic()
+        if self.stale_grace is not None and now - self._last_delivery > self.stale_grace:
+            return False  # the screen has waited long enough: let this one finish
+        return self._last_seconds is None or now - self._started < self.cancel_fraction * self._last_seconds
 
     def _run(self) -> None:
         while True:
@@ -119,6 +124,7 @@ class LatestWorker:
                 ticket, job, on_done, on_error = self._waiting
                 self._waiting, self._running = None, ticket
                 self._cancel = cancel = threading.Event()
+                self._started = time.monotonic()
             try:
                 try:
                     result = job(cancel)
@@ -134,14 +140,11 @@ class LatestWorker:
                     continue
                 with self._condition:
                     newest = ticket == self._newest
-                    starving = self._starving()
-                if newest or starving:
-                    self.stats.delivered += 1
-                    self.stats.late += not newest
-                    self._last_delivery = time.monotonic()
-                    on_done(ticket, result)
-                else:
-                    self.stats.stale += 1
+                    self._last_seconds = time.monotonic() - self._started
+                self.stats.delivered += 1
+                self.stats.late += not newest
+                self._last_delivery = time.monotonic()
+                on_done(ticket, result)
             except Exception:
                 traceback.print_exc()  # a failed draw is reported, and the worker goes on
             finally:

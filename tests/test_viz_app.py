@@ -175,7 +175,8 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
         return real_solve(targets, **options)
 
     monkeypatch.setattr(solver, "solve", slow_solve)
-    monkeypatch.setattr(app.worker, "stale_grace", None)  # the blocked solve would otherwise be drawn late
+    monkeypatch.setattr(app.worker, "stale_grace", None)  # the screen is never deemed starved here
+    monkeypatch.setattr(app.worker, "cancel_fraction", float("inf"))  # the blocked solve counts as early
     stats = app.worker.stats
     before = (stats.replaced, stats.cancelled, stats.delivered)
     drag_gizmo(app, 1.0, 1.0)

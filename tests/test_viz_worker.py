@@ -8,8 +8,10 @@ from ikdp_viz.player import Player
 from ikdp_viz.solve_worker import Cancelled, LatestWorker
 
 
-def test_the_newest_request_wins_and_stale_ones_are_dropped():
-    worker = LatestWorker()
+def test_waiting_requests_are_replaced_and_a_job_too_far_along_to_cancel_shows_before_the_newest():
+    worker = LatestWorker(cancel_fraction=0.0)  # never cancel a job once one has finished
+    worker.submit(lambda cancel: "history", lambda ticket, result: None)
+    assert worker.wait_idle(10)
     started, release = threading.Event(), threading.Event()
     ran, delivered = [], []
 
@@ -34,15 +36,15 @@ def test_the_newest_request_wins_and_stale_ones_are_dropped():
     release.set()
     assert worker.wait_idle(10)
     assert ran == ["first", "fourth"]  # second and third never ran
-    assert delivered == [(4, "fourth")]  # first finished after newer requests: dropped as stale
+    assert delivered == [(2, "first"), (5, "fourth")]  # in order: nothing older follows something newer
     stats = worker.stats
-    assert (stats.submitted, stats.replaced, stats.stale, stats.delivered, stats.cancelled) == (4, 2, 1, 1, 0)
-    assert worker.is_newest(4) and not worker.is_newest(1)
+    assert (stats.submitted, stats.replaced, stats.late, stats.delivered, stats.cancelled) == (5, 2, 1, 3, 0)
+    assert worker.is_newest(5) and not worker.is_newest(2)
     worker.close()
 
 
-def test_a_newer_request_stops_the_running_job():
-    worker = LatestWorker()
+def test_a_newer_request_stops_a_running_job_early_in_its_run():
+    worker = LatestWorker()  # no job has finished yet: any running one is early
     started, delivered = threading.Event(), []
 
     def listening(cancel):
@@ -54,12 +56,12 @@ def test_a_newer_request_stops_the_running_job():
     assert started.wait(10)
     worker.submit(lambda cancel: "newest", lambda ticket, result: delivered.append(result))
     assert worker.wait_idle(10)
-    assert delivered == ["newest"] and worker.stats.cancelled == 1 and worker.stats.stale == 0
+    assert delivered == ["newest"] and worker.stats.cancelled == 1 and worker.stats.late == 0
     worker.close()
 
 
 def test_with_a_grace_a_starved_screen_gets_the_running_job_rather_than_nothing():
-    worker = LatestWorker(stale_grace=0.0)  # the screen has waited long enough already
+    worker = LatestWorker(cancel_fraction=float("inf"), stale_grace=0.0)  # would cancel, but the screen waited
     started, release = threading.Event(), threading.Event()
     delivered, cancelled = [], []
 
@@ -75,7 +77,7 @@ def test_with_a_grace_a_starved_screen_gets_the_running_job_rather_than_nothing(
     release.set()
     assert worker.wait_idle(10)
     assert cancelled == [False]  # not asked to stop
-    assert delivered == ["old", "new"] and worker.stats.late == 1 and worker.stats.stale == 0
+    assert delivered == ["old", "new"] and worker.stats.late == 1 and worker.stats.cancelled == 0
     worker.close()
 
 
