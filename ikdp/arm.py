@@ -1,0 +1,163 @@
+"""Arms: what the solver, the denoisers, training and the viewer know of a robot.
+
+An arm owns its kinematics (forward kinematics, the end-effector Jacobian), its
+targets (their dimension, validation, the workspace and clamping onto it) and the
+draw of random poses. Everything above it takes an arm, never `lengths` plus a
+hard-wired `(B, 2)`. `PlanarArm` is the paper's N-link arm; a spatial chain read
+from a URDF is a second class with the same methods (ikdp/chain_arm.py).
+
+The pose of a planar arm is its vector of absolute link headings, radians.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from ikdp.kinematics import (
+    forward_kinematics,
+    project_to_workspace,
+    reach,
+    tip_jacobian,
+    tip_position,
+    wrap_angle,
+)
+
+
+def uniform_angles(shape: tuple[int, ...], *, generator: torch.Generator | None = None) -> torch.Tensor:
+    """Angles uniform on [-pi, pi), any shape: the draw of random headings and random restarts."""
+    return (torch.rand(shape, generator=generator) * 2 - 1) * math.pi
+
+
+def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
+    """Array-like (B, target_dim) -> float32 tensor; ValueError naming the problem otherwise.
+
+    A 1-D input is refused like any other wrong shape: `[1.0, 2.0]` is ambiguous between one
+    target and two numbers, and silently guessing hides bugs in the caller.
+    """
+    try:
+        tensor = torch.as_tensor(targets, dtype=torch.float32)
+    except (TypeError, ValueError, RuntimeError) as error:
+        expected = f"targets: expected numbers of shape (B, {target_dim})"
+        raise ValueError(f"{expected}, could not read them ({error})") from None
+    if tensor.ndim != 2 or tensor.shape[1] != target_dim or tensor.shape[0] == 0:
+        hint = "; wrap one target as [[...]]" if tensor.ndim == 1 else ""
+        raise ValueError(f"targets: expected shape (B, {target_dim}) with B >= 1, got {tuple(tensor.shape)}{hint}")
+    bad_rows = torch.nonzero(~torch.isfinite(tensor).all(dim=1)).flatten()
+    if len(bad_rows):
+        row = int(bad_rows[0])
+        raise ValueError(f"targets: row {row} is {tensor[row].tolist()}, NaN or inf is not a target")
+    return tensor
+
+
+class PlanarArm:
+    """The paper's planar arm: N links of given lengths, pose = absolute link headings (N,)."""
+
+    kind = "planar"
+    target_dim = 2  # a target is a point (x, y) for the tip
+    joint_limits = None  # headings live on the circle: no limits, poses wrap
+
+    def __init__(self, lengths):
+        lengths = tuple(float(length) for length in lengths)
+        if len(lengths) < 1 or any(not length > 0 for length in lengths):
+            raise ValueError(f"lengths: expected one or more positive bone lengths, got {lengths}")
+        self.lengths = lengths
+        self._lengths64 = torch.tensor(lengths, dtype=torch.float64)
+
+    def __repr__(self) -> str:
+        return f"PlanarArm(lengths={self.lengths})"
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, PlanarArm) and other.lengths == self.lengths
+
+    def __hash__(self) -> int:
+        return hash(("planar", self.lengths))
+
+    # --- description -------------------------------------------------------------------------
+    @property
+    def num_joints(self) -> int:
+        return len(self.lengths)
+
+    num_links = num_joints
+
+    @property
+    def reach(self) -> tuple[float, float]:
+        """(inner, outer) radius of the annulus the tip can reach."""
+        return reach(self.lengths)
+
+    @property
+    def span(self) -> float:
+        """A length scale of the workspace: the outer reach."""
+        return self.reach[1]
+
+    def to_config(self) -> dict:
+        return {"kind": self.kind, "lengths": list(self.lengths)}
+
+    def lengths_like(self, tensor: torch.Tensor) -> torch.Tensor:
+        return self._lengths64.to(device=tensor.device, dtype=tensor.dtype)
+
+    # --- kinematics --------------------------------------------------------------------------
+    def forward_kinematics(self, headings: torch.Tensor) -> torch.Tensor:
+        """(..., N) -> every joint, base first and tip last, (..., N+1, 2)."""
+        headings = torch.as_tensor(headings)
+        if not headings.is_floating_point():
+            headings = headings.float()
+        return forward_kinematics(headings, self.lengths_like(headings))
+
+    def end_effector(self, headings: torch.Tensor) -> torch.Tensor:
+        """(..., N) -> the tip, (..., 2)."""
+        return tip_position(headings, self.lengths_like(headings))
+
+    def jacobian(self, headings: torch.Tensor) -> torch.Tensor:
+        """(..., N) -> d tip / d headings, (..., 2, N)."""
+        return tip_jacobian(headings, self.lengths_like(headings))
+
+    def task_error(self, headings: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """The vector from the tip to the target, (..., 2): what damped least squares drives to zero."""
+        return targets - self.end_effector(headings)
+
+    def tip_error(self, headings: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """Distance from the tip to the target, (...), computed in float64 and returned as float32.
+
+        headings (..., N) and targets broadcastable to (..., 2). Float64 because refined poses
+        land within 1e-6, where float32's FK would report its own rounding.
+        """
+        tip = tip_position(headings.double(), self._lengths64.to(headings.device))
+        return (tip - targets.double()).norm(dim=-1).float()
+
+    def normalize_joints(self, headings: torch.Tensor) -> torch.Tensor:
+        """Put poses back in their canonical range after a step: headings wrap into (-pi, pi]."""
+        return wrap_angle(headings)
+
+    # --- targets -----------------------------------------------------------------------------
+    def validate_targets(self, targets) -> torch.Tensor:
+        """Array-like (B, 2) -> float32 tensor (B, 2); ValueError naming the problem otherwise."""
+        return validate_target_rows(targets, self.target_dim)
+
+    def is_reachable(self, targets: torch.Tensor) -> torch.Tensor:
+        """(B, 2) -> (B,) True where the tip can reach the target."""
+        inner, outer = self.reach
+        radius = targets.norm(dim=-1)
+        return (radius <= outer + 1e-6) & (radius >= inner - 1e-6)
+
+    def clamp_to_workspace(self, targets: torch.Tensor) -> torch.Tensor:
+        """(..., 2) -> the nearest reachable point to each target."""
+        return project_to_workspace(targets, self.lengths)
+
+    # --- poses -------------------------------------------------------------------------------
+    def random_poses(self, count: int, *, generator: torch.Generator | None = None) -> torch.Tensor:
+        """`count` poses with every heading uniform on the circle, (count, N)."""
+        return uniform_angles((count, self.num_joints), generator=generator)
+
+
+def arm_from_config(config: dict):
+    """Rebuild an arm from `to_config()`; ValueError if the description is not one we know."""
+    kind = config.get("kind")
+    if kind == "planar":
+        return PlanarArm(config["lengths"])
+    if kind == "chain":
+        from ikdp.chain_arm import ChainArm  # spatial chains pull in the URDF reader only when used
+
+        return ChainArm.from_config(config)
+    raise ValueError(f"arm: unknown kind {kind!r}, expected 'planar' or 'chain'")
