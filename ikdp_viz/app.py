@@ -278,7 +278,7 @@ class VizApp:
             self.solved, self.error = solved, None
             self._recolor()
             self._ensure_arm_nodes()
-            self.panel.plot.scales = plot_scales(*readouts.error_range(solved.view.tip_error))
+            self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
             self._write_refined()
             last = solved.view.num_states - 1
             released = self._animate_target is not None and np.array_equal(solved.request.target, self._animate_target)

@@ -25,11 +25,14 @@ def highlight_options(num_samples: int) -> tuple[str, ...]:
     return ("best", *(str(index) for index in range(num_samples)))
 
 
-def plot_scales(low: float, high: float) -> dict:
-    """Tip error (log y) against diffusion time, T on the left as in the denoising's order."""
+def plot_scales(num_timesteps: int, low: int, high: int) -> dict:
+    """log10 tip error (y, whole decades low..high) against diffusion time t = 0 .. T left to right, like the slider.
+
+    Both ranges are fixed: an auto x range stuck at the placeholder data's 0..1.
+    """
     return {
-        "x": viser.uplot.Scale(time=False, dir=-1, auto=True),
-        "y": viser.uplot.Scale(distr=3, range=(low, high)),
+        "x": viser.uplot.Scale(time=False, auto=False, range=(0.0, float(max(num_timesteps, 1)))),
+        "y": viser.uplot.Scale(auto=False, range=(float(low), float(high))),
     }
 
 
@@ -103,7 +106,7 @@ def build_panel(
     with gui.add_folder("Readouts"):
         readout_text = gui.add_markdown("Waiting for the first solve...")
         plot = gui.add_uplot(
-            data=(np.array([0.0, 1.0]), np.ones(2), np.ones(2), np.full(2, np.nan)),
+            data=(np.array([0.0, float(num_timesteps)]), np.zeros(2), np.zeros(2), np.full(2, np.nan)),
             series=(
                 viser.uplot.Series(label="t"),
                 viser.uplot.Series(label="median", stroke="#999999", width=1.5),
@@ -112,8 +115,8 @@ def build_panel(
                     label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
                 ),
             ),
-            title="tip error vs timestep",
-            scales=plot_scales(1e-3, 10.0),
+            title="log10 tip error vs timestep t",
+            scales=plot_scales(num_timesteps, -3, 1),
             legend=viser.uplot.Legend(show=True),
             aspect=1.5,
         )

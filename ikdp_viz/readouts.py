@@ -64,8 +64,11 @@ def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> s
     return "  \n".join(lines)
 
 
-def error_range(tip_error: np.ndarray) -> tuple[float, float]:
-    """A log-scale y range holding every tip error of a solve, with a margin."""
+def error_range(tip_error: np.ndarray) -> tuple[int, int]:
+    """Whole decades (low, high), as log10 exponents, holding every positive tip error of a solve; at least one apart."""
     positive = tip_error[tip_error > 0]
-    low = max(1e-6, float(positive.min()) / 2) if positive.size else 1e-3
-    return low, max(float(tip_error.max()) * 2, low * 10)
+    if not positive.size:
+        return -3, -2
+    low = int(np.floor(np.log10(max(float(positive.min()), 1e-6))))
+    high = int(np.ceil(np.log10(float(positive.max()))))
+    return low, max(high, low + 1)

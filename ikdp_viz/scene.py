@@ -26,6 +26,7 @@ TIP_FAINT = (248, 222, 190)  # tip markers at t = T
 TIP_DARK = (235, 120, 10)  # tip markers at t = 0
 REFINED = (25, 160, 70)  # the damped-least-squares polish of the final pose
 FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
+ERROR_FLOOR = 1e-6  # tip errors below this are charted at it (log10 of 0 is -inf)
 LAYER_HEIGHT = 1e-4  # z step between consecutive states, so later (darker) lines draw over earlier ones
 
 
@@ -208,15 +209,16 @@ def circle_segments(radius: float, count: int = 256, z: float = 0.0) -> np.ndarr
 
 
 def error_curves(view: SolveView, highlight: int, state: int) -> tuple[np.ndarray, ...]:
-    """uPlot data for tip error against diffusion time, x ascending (t = 0 .. T).
+    """uPlot data for log10 of the tip error against diffusion time, x ascending (t = 0 .. T).
 
     Series: the median over the K samples, the highlighted sample, and a marker
-    that is the highlighted sample's error at the current state and NaN elsewhere.
+    that is the highlighted sample's value at the current state and NaN elsewhere.
+    The chart's y axis is linear in log10(error): uPlot's own logarithmic axis threw
+    `RangeError: Invalid array length` in the page for ranges that are not whole decades.
     """
     order = np.argsort(view.labels, kind="stable")  # labels run T..0; uPlot needs x ascending
-    floor = 1e-6  # the plot's y axis is logarithmic
-    median = np.maximum(np.median(view.tip_error, axis=1), floor)
-    chosen = np.maximum(view.tip_error[:, highlight], floor)
+    median = np.log10(np.maximum(np.median(view.tip_error, axis=1), ERROR_FLOOR))
+    chosen = np.log10(np.maximum(view.tip_error[:, highlight], ERROR_FLOOR))
     marker = np.full(view.num_states, np.nan)
     marker[state] = chosen[state]
     return (view.labels[order].astype(np.float64), median[order], chosen[order], marker[order])

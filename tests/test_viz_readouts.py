@@ -39,7 +39,8 @@ def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
     assert "trained" not in model_text(2, (1.0, 0.5), 20, {})
 
 
-def test_error_range_holds_every_error_on_a_log_axis():
-    low, high = error_range(np.array([[3.0, 0.5], [0.02, 0.0]]))
-    assert 0 < low <= 0.01 and high >= 6.0
-    assert error_range(np.zeros((2, 2))) == (1e-3, 1e-2)
+def test_error_range_is_the_whole_decades_around_every_error():
+    assert error_range(np.array([[3.0, 0.5], [0.02, 0.0]])) == (-2, 1)  # 0.01 .. 10
+    assert error_range(np.array([[9.87], [0.00196]])) == (-3, 1)  # issue 10's target: not 0.00098, a decade
+    assert error_range(np.array([[0.5, 0.5]])) == (-1, 0)  # one decade at least
+    assert error_range(np.zeros((2, 2))) == (-3, -2)

@@ -1,0 +1,75 @@
+"""The shipped model in a real browser, on targets that broke the page before: no page error, no console error.
+
+Issue 10, defect 1: on `ikdp_n4`, target (-0.010, +1.200), K = 16, seed 0, DDPM, the
+tip-error chart threw `RangeError: Invalid array length` in the page. The sweep adds
+a target near the base, one on the boundary and one out of reach. Every page error
+and every console message of type "error" is collected; none may appear.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from viz_helpers import CHROMIUM_ARGS, chromium_or_skip, running_app, settle
+
+import ikdp
+from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+TIMEOUT = 60.0  # seconds, for anything the browser has to render
+ISSUE_TARGET = (-0.010, 1.200)
+SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw each solve (software WebGL is slow)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    executable = chromium_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture(scope="module")
+def shipped_solver():
+    if DEFAULT_MODEL not in {path.stem for path in list_shipped()}:
+        pytest.skip(f"the shipped {DEFAULT_MODEL} is not there")
+    return ikdp.load(shipped_checkpoint(DEFAULT_MODEL))
+
+
+def page_errors(browser, app) -> tuple[object, list[str]]:
+    """A page on `app` and the list every page error and console error is appended to."""
+    errors: list[str] = []
+    page = browser.new_page(viewport={"width": 1280, "height": 1600})
+    page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+    page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
+    page.goto(f"http://127.0.0.1:{app.server.get_port()}")
+    page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
+    return page, errors
+
+
+def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shipped_solver):
+    outer = shipped_solver.reach[1]
+    sweep = {
+        "issue": ISSUE_TARGET,
+        "near the base": (0.02, 0.01),
+        "on the boundary": (outer * np.cos(0.7), outer * np.sin(0.7)),
+        "unreachable": (5 * outer, -3 * outer),
+        "inside": (0.9, -0.6),
+    }
+    with running_app(shipped_solver, solve_now=False, animation_seconds=1.0) as app:
+        page, errors = page_errors(browser, app)
+        assert (app.panel.samples.value, app.panel.seed.value, app.panel.sampler.value) == (16, 0, "DDPM")
+        for name, target in sweep.items():
+            app.move_target(target)
+            settle(app)
+            app.panel.timestep.value = app.solver.timesteps // 2  # scrubbing redraws the chart too
+            time.sleep(SETTLE_IN_PAGE)
+            page.screenshot(timeout=TIMEOUT * 1000)  # headless chromium renders (and runs the chart's draw) for it
+            assert not errors, f"{name} {target}: {errors[:3]} ({len(errors)} in all)"
+        page.close()
