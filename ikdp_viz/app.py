@@ -192,15 +192,29 @@ class VizApp:
         inner, outer = self.solver.reach
         target, clamped = clamp_to_workspace(point, inner, outer)
         unchanged = np.array_equal(target, self.target)
+        # A drag past the boundary ends on the boundary point the app put the gizmo at: still the clamped request.
+        clamped = clamped or (unchanged and from_gizmo and self.target_clamped)
         self.target, self.target_clamped = target, clamped
+        released = from_gizmo and not dragging
         if clamped or not from_gizmo:
-            self.gizmo.position = (float(target[0]), float(target[1]), 0.0)
+            self._place_gizmo(target, force=released)
         self._write_target_text()
         if unchanged and from_gizmo:
             if not dragging:
                 self._animate_after_drag()
             return None
         return self.request_solve(arrival, animate=not dragging)
+
+    def _place_gizmo(self, target: np.ndarray, *, force: bool = False) -> None:
+        """Move the cross to `target`; `force`: send it even if the server's copy is there already.
+
+        viser skips a position equal to its copy, but while a drag goes past the boundary the page's
+        gizmo follows the pointer beyond the clamped point the server holds: on release it must be sent again.
+        """
+        position = np.array([float(target[0]), float(target[1]), 0.0])
+        if force:
+            self.gizmo.position = position + (1e-3, 0.0, 0.0)  # differs from the server's copy
+        self.gizmo.position = position
 
     def request_solve(self, arrival: float | None = None, *, animate: bool = True) -> int:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""

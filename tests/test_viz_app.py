@@ -107,6 +107,24 @@ def test_a_target_past_the_boundary_is_clamped_and_the_panel_says_so(app, solver
     assert "Clamped to the workspace boundary" in app.panel.target_text.content
 
 
+def test_a_drag_released_past_the_boundary_still_reads_clamped_and_sends_the_cross_to_the_solved_point(app, solver):
+    outer = solver.reach[1]
+    drag_gizmo(app, 10.0, 0.0)  # mid-drag: the app puts the gizmo on the boundary
+    sent = []
+    real_queue = app.gizmo._impl.api._queue_scene_message
+    app.gizmo._impl.api._queue_scene_message = lambda message: (sent.append(message), real_queue(message))[1]
+    try:
+        # viser's release event carries the position the app last wrote: the boundary point itself
+        drag_gizmo(app, *app.gizmo.position[:2], phase="end")
+    finally:
+        app.gizmo._impl.api._queue_scene_message = real_queue
+    settle(app)
+    assert np.allclose(app.solved.view.target, [outer, 0.0])
+    assert "Clamped to the workspace boundary" in app.panel.target_text.content
+    positions = [message.position for message in sent if type(message).__name__ == "SetPositionMessage"]
+    assert positions and np.allclose(positions[-1], [outer, 0.0, 0.0])  # the page's cross is moved there
+
+
 def test_the_trail_toggle_shows_all_intermediate_poses_or_none(app):
     view = app.solved.view
     assert app.trail.visible and app.trail.points.shape[0] == view.num_states * view.num_samples * view.num_links
