@@ -25,10 +25,13 @@ import viser
 
 import ikdp
 from ikdp_viz import meshes, readouts
-from ikdp_viz.panel import SAMPLERS, build_panel, highlight_options, plot_scales
+from ikdp_viz.panel import SAMPLERS, build_panel, highlight_index, highlight_options, plot_scales
 from ikdp_viz.player import Player
 from ikdp_viz.scene import (
+    HIGHLIGHT_LIFT,
     REFINED,
+    REFINED_LIFT,
+    TARGET_LIFT,
     TIP_DARK,
     TIP_FAINT,
     SolveView,
@@ -50,6 +53,16 @@ from ikdp_viz.solve_worker import Cancelled, LatestWorker
 TARGET_RED = (220, 25, 25)
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
+
+
+def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(position, look_at) of a camera straight above the workspace of radius `reach`, all of it in view.
+
+    +x to the right and +y up (a hair off the pole so "up" is defined), the workspace a little
+    left of centre, clear of the panel on the right.
+    """
+    distance, shift = 1.55 * reach, 0.25 * reach
+    return (shift, -1e-3 * distance, distance), (shift, 0.0, 0.0)
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
@@ -330,7 +343,8 @@ class VizApp:
         self.state = state
         highlight = self.highlight_index()
         num_samples, num_links = view.num_samples, view.num_links
-        placement = arm_placement(view.joints[state], view.lengths, raised=highlight, lift=2 * self.sizes.joint)
+        lift = HIGHLIGHT_LIFT * self.sizes.joint
+        placement = arm_placement(view.joints[state], view.lengths, raised=highlight, lift=lift)
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         with self.server.atomic():
@@ -372,9 +386,7 @@ class VizApp:
         view = self.solved.view if self.solved is not None else None
         if view is None:
             return 0
-        if self.panel.highlight.value == "best":
-            return view.best_sample()
-        return min(int(self.panel.highlight.value), view.num_samples - 1)
+        return highlight_index(self.panel.highlight.value, view.best_sample(), view.num_samples)
 
     # ---------------------------------------------------------------- scene
 
@@ -436,14 +448,15 @@ class VizApp:
         self.gizmo.on_update(self.on_gizmo_update)
         cross = meshes.cross_mesh(self.sizes.cross)
         self.cross = scene.add_mesh_simple(
-            "/target/cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False
-        )
+            "/target/cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
+            position=(0.0, 0.0, TARGET_LIFT * self.sizes.joint),
+        )  # fmt: skip
         self._static_nodes = [*nodes, self.gizmo]
-        # Seen from straight above, +x to the right and +y up (a hair off the pole so "up" is defined),
-        # the workspace a little left of centre, clear of the panel on the right.
-        distance, shift = 1.55 * outer, 0.25 * outer
-        self.server.initial_camera.position = (shift, -1e-3 * distance, distance)
-        self.server.initial_camera.look_at = (shift, 0.0, 0.0)
+        position, look_at = camera_fit(outer)
+        self.server.initial_camera.position, self.server.initial_camera.look_at = position, look_at
+        for client in self.server.get_clients().values():  # open tabs too: the new arm may reach farther
+            with client.atomic():
+                client.camera.position, client.camera.look_at = position, look_at
 
     def _ensure_arm_nodes(self) -> None:
         """(Re)create the arm's nodes when K or N changed: a batched node keeps its instance count."""
@@ -519,7 +532,7 @@ class VizApp:
 
     def _write_refined(self) -> None:
         view = self.solved.view
-        lift = 4 * self.sizes.joint  # above the arms
+        lift = REFINED_LIFT * self.sizes.joint  # above the other arms, under the highlighted one
         self.refined_lines.points = polyline_segments(view.final_joints, z=lift)
         self.refined_lines.colors = np.broadcast_to(
             np.array(REFINED, np.uint8), (view.num_samples * view.num_links, 2, 3)

@@ -21,8 +21,15 @@ SAMPLERS = ("DDPM", "DDIM")  # shown names; the solver's are their lower case
 
 
 def highlight_options(num_samples: int) -> tuple[str, ...]:
-    """The highlight dropdown: the sample with the smallest final tip error, or one by index."""
-    return ("best", *(str(index) for index in range(num_samples)))
+    """The highlight dropdown: the sample with the smallest final tip error, or one by its number, 1 to K."""
+    return ("best", *(str(number) for number in range(1, num_samples + 1)))
+
+
+def highlight_index(choice: str, best: int, num_samples: int) -> int:
+    """The 0-based sample a dropdown `choice` names: `best` for "best", else number - 1 (at most K - 1)."""
+    if choice == "best":
+        return best
+    return min(int(choice), num_samples) - 1
 
 
 def plot_scales(num_timesteps: int, low: int, high: int) -> dict:
@@ -89,7 +96,10 @@ def build_panel(
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
     with gui.add_folder("Sampling"):
         samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
-        highlight = gui.add_dropdown("highlight", highlight_options(DEFAULT_SAMPLES), initial_value="best")
+        highlight = gui.add_dropdown(
+            "highlight", highlight_options(DEFAULT_SAMPLES), initial_value="best",
+            hint="best: the smallest tip error at t = 0 (of the refined pose when refine is on); samples count from 1",
+        )  # fmt: skip
         sampler = gui.add_dropdown("sampler", SAMPLERS, initial_value="DDPM")
         ddim_steps = gui.add_slider(
             "DDIM steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_DDIM_STEPS, num_timesteps),

@@ -17,6 +17,13 @@ def target_text(target: np.ndarray, clamped: bool, reach: tuple[float, float]) -
     return text
 
 
+def best_note(view: SolveView, highlight: int) -> str:
+    """ ", the best by ..." when `highlight` is the best sample, naming the error it is ranked by."""
+    if highlight != view.best_sample():
+        return ""
+    return ", the best by refined tip error" if view.refined else ", the best by tip error at t = 0"
+
+
 def solve_text(
     view: SolveView,
     state: int,
@@ -29,12 +36,15 @@ def solve_text(
     solve_seconds: float,
     error: str | None = None,
 ) -> str:
-    """The step shown, the highlighted sample's tip error now and at t = 0, the K samples' median, the solve."""
+    """The step shown, the highlighted sample's tip error now and at t = 0, the K samples' median, the solve.
+
+    `highlight` is 0-based; the text numbers samples as people count, from 1.
+    """
     last = view.num_states - 1
     lines = [
         f"**Step** {state} of {last} (t = {int(view.labels[state])})",
-        f"**Tip error**, sample {highlight}: {view.tip_error[state, highlight]:.4f} now, "
-        f"{view.tip_error[last, highlight]:.4f} at t = 0",
+        f"**Tip error**, sample {highlight + 1} of {view.num_samples}{best_note(view, highlight)}: "
+        f"{view.tip_error[state, highlight]:.4f} now, {view.tip_error[last, highlight]:.4f} at t = 0",
         f"median of K = {view.num_samples}: {np.median(view.tip_error[state]):.4f} now, "
         f"{np.median(view.tip_error[last]):.4f} at t = 0",
     ]
@@ -65,7 +75,7 @@ def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> s
 
 
 def error_range(tip_error: np.ndarray) -> tuple[int, int]:
-    """Whole decades (low, high), as log10 exponents, holding every positive tip error of a solve; at least one apart."""
+    """Whole decades (low, high), as log10 exponents, holding every positive tip error; at least one apart."""
     positive = tip_error[tip_error > 0]
     if not positive.size:
         return -3, -2

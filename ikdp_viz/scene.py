@@ -27,6 +27,11 @@ TIP_DARK = (235, 120, 10)  # tip markers at t = 0
 REFINED = (25, 160, 70)  # the damped-least-squares polish of the final pose
 FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
 ERROR_FLOOR = 1e-6  # tip errors below this are charted at it (log10 of 0 is -inf)
+# Heights above the plane, in joint radii, that set what a top-down view draws on top of what: the
+# refined poses over the other arms, the highlighted arm over them, the target's cross over everything.
+REFINED_LIFT = 1.0
+HIGHLIGHT_LIFT = 2.0
+TARGET_LIFT = 4.0
 LAYER_HEIGHT = 1e-4  # z step between consecutive states, so later (darker) lines draw over earlier ones
 
 

@@ -206,3 +206,28 @@ def test_two_tabs_see_one_scene_and_closing_one_mid_animation_breaks_nothing(vie
         time.sleep(0.05)
     assert len(app.server.get_clients()) == 1
     assert not any("pageerror" in line for line in viewer.console)
+
+
+def test_opening_a_longer_arm_fits_the_open_tabs_view_to_its_reach(viewer, tiny_checkpoint):
+    """Issue 10, defect 8: an N=8 checkpoint opened from the panel used to keep the N=4 camera."""
+    from ikdp.shipped import list_shipped
+    from ikdp_viz.app import camera_fit
+
+    longer = next((path for path in list_shipped() if path.stem == "ikdp_n8"), None)
+    if longer is None:
+        pytest.skip("the shipped ikdp_n8 is not there")
+    app = viewer.app
+    (client,) = app.server.get_clients().values()
+    try:
+        assert app.load_checkpoint(longer)
+        settle(app)
+        expected, _ = camera_fit(app.solver.reach[1])
+        deadline = time.monotonic() + TIMEOUT
+        while not np.allclose(client.camera.position, expected, atol=1e-3) and time.monotonic() < deadline:
+            time.sleep(0.1)  # the page reports its camera back
+        assert np.allclose(client.camera.position, expected, atol=1e-3), client.camera.position
+        pixels = link_pixels(app, viewer.page, app.solved.view.joints[-1])
+        assert len(pixels) and (pixels >= 0).all() and (pixels[:, 0] <= 1280).all() and (pixels[:, 1] <= 800).all()
+    finally:
+        assert app.load_checkpoint(tiny_checkpoint)
+        settle(app)

@@ -87,6 +87,10 @@ def test_scrubbing_the_timestep_slider_shows_that_state(app):
     assert f"**Step** {state} of {view.num_states - 1} (t = 7)" in app.panel.readout_text.content
     t, median, chosen, marker = app.panel.plot.data
     assert np.isfinite(marker).sum() == 1 and t[np.isfinite(marker)][0] == 7
+    # the chart runs t = 0 .. T left to right, as the slider does (issue 10, defect 6)
+    x_scale = app.panel.plot.scales["x"]
+    assert x_scale.get("dir", 1) == 1 and tuple(x_scale["range"]) == (0.0, app.solver.timesteps)
+    assert app.panel.timestep.min == 0 and app.panel.timestep.max == app.solver.timesteps
 
 
 def test_previous_and_next_buttons_step_through_the_states(app):
@@ -138,11 +142,11 @@ def test_samples_and_highlight_change_what_is_drawn(app):
     app.panel.samples.value = 5
     settle(app)
     assert app.solved.view.num_samples == 5 and app.links.batched_positions.shape == (5 * 3, 3)
-    assert app.panel.highlight.options == ("best", "0", "1", "2", "3", "4")
+    assert app.panel.highlight.options == ("best", "1", "2", "3", "4", "5")  # counted as people count
     app.panel.highlight.value = "3"
     colors = app.links.batched_colors.reshape(5, 3, 3)
-    assert (colors[3] != colors[0]).any() and (colors[0] == colors[1]).all()
-    assert "sample 3" in app.panel.readout_text.content
+    assert (colors[2] != colors[0]).any() and (colors[0] == colors[1]).all()
+    assert "sample 3 of 5" in app.panel.readout_text.content
 
 
 def test_ddim_with_fewer_steps_gives_fewer_states(app):
@@ -161,8 +165,15 @@ def test_refine_draws_the_polished_pose_beside_the_raw_one(app, solver):
     settle(app)
     view = app.solved.view
     assert view.refined and app.refined_lines.visible and app.refined_tips.visible
+    assert "the best by refined tip error" in app.panel.readout_text.content  # says what "best" ranks by
     assert np.allclose(app.refined_tips.batched_positions[:, :2], view.final_joints[:, -1], atol=1e-5)
     assert np.median(view.final_tip_error) < np.median(view.tip_error[-1])  # the polish helps
+    # drawn over the other arms, but under the highlighted arm and the target's cross (a top-down camera)
+    highlighted = app.joints.batched_positions.reshape(view.num_samples, -1, 3)[app.highlight_index(), :, 2]
+    refined_height = app.refined_tips.batched_positions[:, 2]
+    cross_height = app.gizmo.position[2] + app.cross.position[2]
+    assert (refined_height > 0).all() and (refined_height < highlighted.min()).all()
+    assert (app.refined_lines.points[..., 2] < highlighted.min()).all() and cross_height > highlighted.max()
     app.panel.timestep.value = 5
     assert not app.refined_lines.visible  # only beside the final pose
 
