@@ -51,7 +51,7 @@ import viser
 from websockets.sync.client import connect
 
 import ikdp
-from ikdp_viz import DEFAULT_CHECKPOINT
+from ikdp.shipped import DEFAULT_MODEL, shipped_checkpoint
 from ikdp_viz.app import VizApp
 
 
@@ -286,7 +286,9 @@ def write_docs(docs: Path, runs: dict) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ckpt", default=str(DEFAULT_CHECKPOINT), help="checkpoint (the shipped N=4 model)")
+    parser.add_argument(
+        "--ckpt", default=str(shipped_checkpoint(DEFAULT_MODEL)), help="checkpoint (the shipped N=4 model)"
+    )
     parser.add_argument("--rate", type=float, default=20.0, help="gizmo updates per second")
     parser.add_argument("--seconds", type=float, default=30.0, help="length of each run")
     parser.add_argument("--animation", type=float, default=1.0, help="animation duration (s), the app's default")

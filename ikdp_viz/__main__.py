@@ -1,56 +1,70 @@
 """Command line of the IKDP viewer: start a viser server and print the URL to open.
 
-    python -m ikdp_viz                                   # the shipped checkpoints/ikdp_n4.pt
-    python -m ikdp_viz --ckpt checkpoints/ikdp_n8.pt --port 8081
+    python -m ikdp_viz                                   # the shipped ikdp_n4
+    python -m ikdp_viz --ckpt ikdp_n8 --port 8081        # another shipped model, or a checkpoint's path
     python -m ikdp_viz --host 0.0.0.0                    # let other machines connect
 
-A checkpoint that cannot be used is a one-line error and exit status 2;
+A checkpoint that cannot be used, a port outside 0..65535 or a host that cannot
+be listened on is a one-line error and exit status 2;
 Ctrl-C stops the server cleanly.
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import dataclasses
 import io
 import signal
+import socket
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
-from ikdp_viz import DEFAULT_CHECKPOINT, DEFAULT_CHECKPOINT_DIR
+from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint, shipped_dir
 
 
 @dataclass(frozen=True)
 class VizConfig:
-    ckpt: str = field(
-        default="", metadata={"help": f"checkpoint to open (default: the shipped {DEFAULT_CHECKPOINT.name})"}
-    )
-    host: str = field(
-        default="127.0.0.1", metadata={"help": "address to listen on; 0.0.0.0 lets other machines connect"}
-    )
-    port: int = field(default=8080, metadata={"help": "port to listen on; if taken, the next free one"})
-    device: str = field(default="cpu", metadata={"help": "torch device the model runs on: cpu, cuda, cuda:1, ..."})
+    """Interactive browser view of IKDP's reverse diffusion: drag the target, watch the arm denoise."""
+
+    ckpt: str = DEFAULT_MODEL  # a shipped model's name (see the Model panel) or the path of a checkpoint file
+    host: str = "127.0.0.1"  # address to listen on; 0.0.0.0 lets other machines connect
+    port: int = 8080  # port to listen on; if taken, the next free one
+    device: str = "cpu"  # torch device the model runs on: cpu, cuda, cuda:1, ...
 
 
 def parse_config(argv: list[str] | None = None) -> VizConfig:
-    parser = argparse.ArgumentParser(
-        prog="ikdp-viz",
-        description="Interactive browser view of IKDP's reverse diffusion: drag the target, watch the arm denoise.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
-    for option in dataclasses.fields(VizConfig):
-        parser.add_argument(
-            f"--{option.name}", type=type(option.default), default=option.default, help=option.metadata["help"]
-        )
-    return VizConfig(**vars(parser.parse_args(argv)))
+    import tyro  # here: importing this module does nothing
+
+    return tyro.cli(VizConfig, args=argv, prog="ikdp-viz", description=VizConfig.__doc__)
 
 
 def fail(message: str) -> None:
     print(f"ikdp-viz: error: {message}", file=sys.stderr)
     raise SystemExit(2)
+
+
+def checkpoint_path(ckpt: str) -> Path:
+    """A shipped model's file when `ckpt` names one and is no file here, else `ckpt` as a path."""
+    if not Path(ckpt).exists() and Path(ckpt).stem in {path.stem for path in list_shipped()} and "/" not in ckpt:
+        return shipped_checkpoint(ckpt)
+    return Path(ckpt)
+
+
+def check_address(host: str, port: int) -> None:
+    """Exit 2 with one line for a port outside 0..65535 or a host this machine cannot listen on.
+
+    viser would raise OverflowError in its own thread for the first and hang; a taken port is
+    fine (viser moves to the next), so the host is tried on a free port.
+    """
+    if not 0 <= port <= 65535:
+        fail(f"--port {port}: expected a port from 0 to 65535 (0: any free one)")
+    try:
+        family = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)[0][0]
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.bind((host, 0))
+    except (OSError, UnicodeError) as error:
+        fail(f"--host {host}: cannot listen there ({getattr(error, 'strerror', None) or error})")
 
 
 def load_solver(path: Path, device: str):
@@ -69,10 +83,11 @@ def load_solver(path: Path, device: str):
 
 def main(argv: list[str] | None = None) -> None:
     config = parse_config(argv)
+    check_address(config.host, config.port)
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops as cleanly as Ctrl-C
     server = app = None
     try:
-        path = Path(config.ckpt) if config.ckpt else DEFAULT_CHECKPOINT
+        path = checkpoint_path(config.ckpt)
         solver = load_solver(path, config.device)
 
         import torch
@@ -86,8 +101,8 @@ def main(argv: list[str] | None = None) -> None:
         app = VizApp(
             server,
             solver,
-            checkpoints=list_checkpoints(DEFAULT_CHECKPOINT_DIR, path),
-            checkpoint_folder=DEFAULT_CHECKPOINT_DIR,
+            checkpoints=list_checkpoints(shipped_dir(), path),
+            checkpoint_folder=shipped_dir(),
         )
         port = server.get_port()
         shown_host = "localhost" if config.host in ("0.0.0.0", "::", "") else config.host

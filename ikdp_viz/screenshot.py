@@ -1,4 +1,4 @@
-"""A screenshot of the viewer in headless chromium, for the docs: `python -m ikdp_viz.screenshot docs/screenshot.png`.
+"""A screenshot of the viewer in headless chromium: `python -m ikdp_viz.screenshot --output docs/screenshot.png`.
 
 Starts the app in-process on a free local port, solves one target, opens the
 page in Debian's chromium (Playwright, software WebGL) and saves the picture
@@ -7,42 +7,51 @@ once the final pose is drawn. Needs the test extras (playwright) and chromium.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import time
+from dataclasses import dataclass
 from pathlib import Path
+
+from ikdp.shipped import DEFAULT_MODEL
 
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
 NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"  # viser fades its canvas in
 
 
-def main(argv: list[str] | None = None) -> None:
-    from ikdp_viz import DEFAULT_CHECKPOINT
+@dataclass(frozen=True)
+class ScreenshotConfig:
+    """A screenshot of the viewer in headless chromium, for the docs."""
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("output", type=Path, help="PNG to write")
-    parser.add_argument("--ckpt", default=str(DEFAULT_CHECKPOINT), help="checkpoint to show")
-    parser.add_argument("--target", type=float, nargs=2, default=(1.9, 1.5), help="target x y")
-    parser.add_argument("--samples", type=int, default=16, help="samples K")
-    parser.add_argument("--seed", type=int, default=3, help="sampling seed")
-    parser.add_argument("--chromium", default="/usr/bin/chromium", help="browser executable")
-    parser.add_argument("--size", type=int, nargs=2, default=(1400, 900), help="viewport width height")
-    args = parser.parse_args(argv)
+    output: Path  # PNG to write
+    ckpt: str = DEFAULT_MODEL  # a shipped model's name or a checkpoint's path
+    target: tuple[float, float] = (1.9, 1.5)  # target x y
+    samples: int = 16  # samples K
+    seed: int = 3  # sampling seed
+    chromium: str = "/usr/bin/chromium"  # browser executable
+    size: tuple[int, int] = (1400, 900)  # viewport width height
+
+
+def main(argv: list[str] | None = None) -> None:
+    import tyro
+
+    args = tyro.cli(ScreenshotConfig, args=argv)
 
     import torch
     import viser
     from playwright.sync_api import sync_playwright
 
     import ikdp
-    from ikdp_viz import DEFAULT_CHECKPOINT_DIR
+    from ikdp.shipped import shipped_dir
+    from ikdp_viz.__main__ import checkpoint_path
     from ikdp_viz.app import VizApp, list_checkpoints
 
     torch.set_num_threads(1)
-    solver = ikdp.load(args.ckpt)
+    path = checkpoint_path(args.ckpt)
+    solver = ikdp.load(path)
     with contextlib.redirect_stdout(io.StringIO()):
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    checkpoints = list_checkpoints(DEFAULT_CHECKPOINT_DIR, Path(args.ckpt))
+    checkpoints = list_checkpoints(shipped_dir(), path)
     app = VizApp(
         server, solver, checkpoints=checkpoints, solve_now=False, animation_seconds=0.0, target=tuple(args.target)
     )

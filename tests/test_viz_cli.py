@@ -51,19 +51,40 @@ def test_an_unknown_device_is_one_line_and_exit_status_2(tiny_checkpoint):
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
 
 
-def test_help_lists_the_options_and_their_defaults():
+def test_help_lists_every_option_once_with_its_one_default():
     result = run_cli("--help")
     assert result.returncode == 0
-    for option in ("--ckpt", "--host", "--port", "--device"):
-        assert option in result.stdout
-    assert "127.0.0.1" in result.stdout and "8080" in result.stdout
+    text = " ".join(result.stdout.replace("│", " ").split())  # the help box wraps lines
+    for option, default in (("--ckpt", "ikdp_n4"), ("--host", "127.0.0.1"), ("--port", "8080"), ("--device", "cpu")):
+        assert text.count(f"{option} ") == 2, text  # in the usage line and in the list, once each
+        entry = text.split(f"{option} ")[2].split("--")[0]
+        assert entry.count("(default:") == 1 and f"(default: {default})" in entry, entry
+    assert "(default: )" not in text
+
+
+@pytest.mark.parametrize(
+    "arguments, reason",
+    [
+        (("--port", "-5"), "--port -5: expected a port from 0 to 65535"),
+        (("--port", "70000"), "--port 70000: expected a port from 0 to 65535"),
+        (("--host", "10.254.254.254", "--port", "0"), "--host 10.254.254.254: cannot listen there"),
+        (("--host", "no.such.host.invalid", "--port", "0"), "--host no.such.host.invalid: cannot listen there"),
+    ],
+)
+def test_a_bad_port_or_host_is_one_line_and_exit_status_2(arguments, reason):
+    result = run_cli(*arguments)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert lines == [lines[0]] and lines[0].startswith(f"ikdp-viz: error: {reason}"), result.stderr
+    assert "Traceback" not in result.stderr and result.stdout == ""
 
 
 def test_default_model_a_taken_port_and_ctrl_c(tmp_path):
     """From another folder, with no --ckpt: the shipped model loads, the next port is used, Ctrl-C exits cleanly."""
-    default = REPO / "checkpoints" / "ikdp_n4.pt"
-    if not default.exists():
-        pytest.skip("the shipped checkpoints/ikdp_n4.pt is not there")
+    from ikdp.shipped import DEFAULT_MODEL, list_shipped
+
+    if DEFAULT_MODEL not in {path.stem for path in list_shipped()}:
+        pytest.skip(f"the shipped {DEFAULT_MODEL} is not there")
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
