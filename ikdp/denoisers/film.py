@@ -20,22 +20,24 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig
 from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.refine import dls_step
 from ikdp.representation import AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the reach
 
 
 class FiLMDenoiser(nn.Module):
-    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, lengths: torch.Tensor):
+    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
         super().__init__()
+        if arm.kind != "planar" or representation.kind == "limits":
+            raise ValueError(f"denoiser 'film': its features are a planar arm's; got a {arm.kind} arm, use 'mlp'")
         self.config = config
         self.representation = representation
         num_links, dim, hidden = representation.num_links, representation.dim, config.hidden
-        self.register_buffer("lengths", lengths.float().clone(), persistent=False)
-        self.reach = float(lengths.sum())
+        self.register_buffer("lengths", torch.tensor(arm.lengths, dtype=torch.float32), persistent=False)
+        self.reach = arm.span
         feature_dim = dim + 2 + num_links  # x_t, the tip's miss vector, a damped least-squares step per link
-        self.register_buffer("perpendicular", torch.tensor([[0.0, -1.0], [1.0, 0.0]]), persistent=False)
-        self.register_buffer("damping_identity", (DLS_DAMPING * self.reach) ** 2 * torch.eye(2), persistent=False)
+        self.damping_squared = (DLS_DAMPING * self.reach) ** 2
         # the miss in tenths of the reach: the last steps correct misses of a few thousandths
         scale = torch.cat((torch.ones(dim), torch.full((2,), 10 / self.reach), torch.ones(num_links)))
         self.register_buffer("feature_scale", scale, persistent=False)
@@ -65,21 +67,13 @@ class FiLMDenoiser(nn.Module):
         """(M, D) noisy sample, its (M, N, 2) unit bone directions, (M, 2) target -> (M, F).
 
         F is x_t, the tip's miss e and the damped least-squares step J^T (J J^T + lambda^2 I)^-1 e:
-        the turn of each link a DLS solver would take. With B the (2, N) bone vectors, J = R B for
-        R the 90-degree turn, so the step is B^T (B B^T + lambda^2 I)^-1 R^T e: one 2x2 solve,
-        written with Cayley-Hamilton, A^-1 = (tr(A) I - A) / det(A). Few tensor ops on purpose:
-        at sampling time each op's fixed cost, not its arithmetic, is what a step pays.
+        the turn of each link a DLS solver would take (ikdp.refine.dls_step, the refinement's own
+        step). Bone n's column of J is its bone vector turned by 90 degrees.
         """
         bones = unit * self.lengths[:, None]  # (M, N, 2)
         miss = target - bones.sum(dim=-2)  # (M, 2): target - tip
-        damped_gram = bones.transpose(-1, -2) @ bones + self.damping_identity  # (M, 2, 2)
-        a, b, d = damped_gram[:, 0, 0], damped_gram[:, 0, 1], damped_gram[:, 1, 1]
-        turned_miss = miss @ self.perpendicular  # (M, 2): R^T e
-        # det and trace by hand: torch.linalg.det costs more than the rest of the step's algebra
-        solved = ((a + d)[:, None] * turned_miss - (damped_gram @ turned_miss[..., None])[..., 0]) / (a * d - b * b)[
-            :, None
-        ]
-        step = (bones @ solved[..., None])[..., 0]  # (M, N)
+        jacobian = torch.stack((-bones[..., 1], bones[..., 0]), dim=-2)  # (M, 2, N)
+        step = dls_step(jacobian, miss, self.damping_squared)  # (M, N)
         return torch.cat((x, miss, step), dim=-1) * self.feature_scale
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
