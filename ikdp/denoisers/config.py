@@ -12,6 +12,7 @@ class DenoiserConfig:
     kind: str = "film"  # film: kinematics-aware FiLM MLP (planar arms); mlp: plain FiLM MLP; paper: the paper's
     hidden: int = 128  # film, mlp: width of the residual MLP
     blocks: int = 3  # film, mlp: residual blocks
+    kinematic_until: int = 0  # film: give the tip miss and DLS step only at t < this (0: at every t)
     time_dim: int = 64  # size of the sinusoidal timestep embedding
     model_dim: int = 64  # paper: transformer token width
     heads: int = 4  # paper: attention heads

@@ -41,6 +41,8 @@ class FiLMDenoiser(nn.Module):
         # the miss in tenths of the reach: the last steps correct misses of a few thousandths
         scale = torch.cat((torch.ones(dim), torch.full((2,), 10 / self.reach), torch.ones(num_links)))
         self.register_buffer("feature_scale", scale, persistent=False)
+        kinematic_mask = torch.cat((torch.ones(dim, dtype=torch.bool), torch.zeros(2 + num_links, dtype=torch.bool)))
+        self.register_buffer("kinematic_mask", kinematic_mask, persistent=False)
         self.input = nn.Linear(feature_dim, hidden)
         self.condition_net = nn.Sequential(
             nn.Linear(config.time_dim + 2, hidden),
@@ -58,10 +60,21 @@ class FiLMDenoiser(nn.Module):
         return self.representation.kind == "cossin"
 
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """t: (M,), target: (M, 2) -> FiLM parameters (M, blocks, 2, hidden): scale and shift."""
+        """t: (M,), target: (M, 2) -> (M, blocks + 1, 2, hidden).
+
+        Rows 0..blocks-1 are the FiLM scale and shift of each block. The last row carries, in
+        [0, :F], the scale of each input feature at this t: the kinematic features (the tip's
+        miss and the DLS step) are switched off at t >= config.kinematic_until when that is set.
+        """
         embedded = torch.cat((sinusoidal_embedding(t, self.config.time_dim), target / self.reach), dim=-1)
         film = self.condition_net(embedded).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
-        return torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2)
+        feature_scale = self.feature_scale.expand(len(t), -1)
+        if self.config.kinematic_until > 0:
+            keep = self.kinematic_mask | (t < self.config.kinematic_until)[:, None]
+            feature_scale = feature_scale * keep
+        feature_row = torch.zeros(len(t), 1, 2, self.config.hidden, dtype=film.dtype, device=film.device)
+        feature_row[:, 0, 0, : feature_scale.shape[1]] = feature_scale
+        return torch.cat((torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2), feature_row), dim=1)
 
     def features(self, x: torch.Tensor, unit: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """(M, D) noisy sample, its (M, N, 2) unit bone directions, (M, 2) target -> (M, F).
@@ -74,17 +87,18 @@ class FiLMDenoiser(nn.Module):
         miss = target - bones.sum(dim=-2)  # (M, 2): target - tip
         jacobian = torch.stack((-bones[..., 1], bones[..., 0]), dim=-2)  # (M, 2, N)
         step = dls_step(jacobian, miss, self.damping_squared)  # (M, N)
-        return torch.cat((x, miss, step), dim=-1) * self.feature_scale
+        return torch.cat((x, miss, step), dim=-1)
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
-        """x: (M, D), target: (M, 2), film: (M, blocks, 2, hidden) -> the estimate of x_0, (M, D).
+        """x: (M, D), target: (M, 2), film: condition() rows -> the estimate of x_0, (M, D).
 
         The network outputs a turn of each link, and x_0 is x_t turned by it: a clean pose
         is on the circle of headings, so a turn can reach any of it, and near t = 0, where
         the pose is nearly right, the turn it needs is close to the DLS step it was given.
         """
         unit = self.representation.unit_vectors(x)
-        h = self.input(self.features(x, unit, target))
+        feature_scale = film[:, -1, 0, : self.input.in_features]
+        h = self.input(self.features(x, unit, target) * feature_scale)
         for index, block in enumerate(self.blocks):
             h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], h, film[:, index, 0])))
         return self.representation.turn(x, self.output(nn.functional.silu(h)), unit=unit)
