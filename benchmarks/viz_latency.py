@@ -117,7 +117,7 @@ def solve_only(solver: ikdp.Solver, repeats: int) -> dict[str, float]:
         generator = torch.Generator().manual_seed(index)
         started = time.perf_counter()
         solver.solve(
-            path_point(index * 0.37, solver.reach[1]), num_samples=16, generator=generator, return_trajectory=True
+            [path_point(index * 0.37, solver.reach[1])], num_samples=16, generator=generator, return_trajectory=True
         )
         times.append(1000 * (time.perf_counter() - started))
     return percentiles(times)

@@ -15,9 +15,9 @@ import viser.uplot
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
-DEFAULT_DDIM_STEPS = 20
+DEFAULT_STEPS = 20  # for samplers that can skip steps (ikdp.samplers: supports_steps)
+DEFAULT_DURATION = 4.0  # seconds from t = T to 0: at 80 steps, 20 states a second, each step seen
 DEFAULT_REFINE_STEPS = 5
-SAMPLERS = ("DDPM", "DDIM")  # shown names; the solver's are their lower case
 
 
 def highlight_options(num_samples: int) -> tuple[str, ...]:
@@ -52,11 +52,12 @@ class Panel:
     next_button: viser.GuiButtonHandle
     duration: viser.GuiNumberHandle
     show_trail: viser.GuiCheckboxHandle
+    show_estimate: viser.GuiCheckboxHandle
     play_on_move: viser.GuiCheckboxHandle
     samples: viser.GuiSliderHandle
     highlight: viser.GuiDropdownHandle
     sampler: viser.GuiDropdownHandle
-    ddim_steps: viser.GuiSliderHandle
+    steps: viser.GuiSliderHandle
     seed: viser.GuiNumberHandle
     new_seed: viser.GuiCheckboxHandle
     refine: viser.GuiCheckboxHandle
@@ -72,6 +73,7 @@ def build_panel(
     *,
     num_timesteps: int,
     animation_seconds: float,
+    sampler_names: tuple[str, ...],
     checkpoint_labels: tuple[str, ...],
     checkpoint_label: str,
     model_text: str,
@@ -93,6 +95,9 @@ def build_panel(
         show_trail = gui.add_checkbox(
             "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
         )
+        show_estimate = gui.add_checkbox(
+            "show x̂0", False, hint="Ghosted in purple: the denoiser's estimate of the final pose at the step shown"
+        )
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
     with gui.add_folder("Sampling"):
         samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
@@ -100,10 +105,10 @@ def build_panel(
             "highlight", highlight_options(DEFAULT_SAMPLES), initial_value="best",
             hint="best: the smallest tip error at t = 0 (of the refined pose when refine is on); samples count from 1",
         )  # fmt: skip
-        sampler = gui.add_dropdown("sampler", SAMPLERS, initial_value="DDPM")
-        ddim_steps = gui.add_slider(
-            "DDIM steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_DDIM_STEPS, num_timesteps),
-            disabled=True,
+        sampler = gui.add_dropdown("sampler", sampler_names, initial_value=sampler_names[0])
+        steps = gui.add_slider(
+            "steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_STEPS, num_timesteps),
+            disabled=True, hint="Reverse steps of a sampler that can skip some; DDPM always takes all T",
         )  # fmt: skip
         seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
         new_seed = gui.add_checkbox("new seed each move", False)
@@ -134,7 +139,7 @@ def build_panel(
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
     return Panel(
-        target_text, timestep, previous_button, play_button, next_button, duration, show_trail, play_on_move,
-        samples, highlight, sampler, ddim_steps, seed, new_seed, refine, refine_steps, readout_text, plot,
+        target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
+        play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps, readout_text, plot,
         checkpoint, model_markdown,
     )  # fmt: skip

@@ -30,7 +30,6 @@ def solve_text(
     highlight: int,
     *,
     sampler: str,
-    steps: int | None,
     seed: int,
     refine_steps: int,
     solve_seconds: float,
@@ -50,8 +49,7 @@ def solve_text(
     ]
     if view.refined:
         lines.append(f"refined ({refine_steps} DLS steps): {view.final_tip_error[highlight]:.2e}")
-    step_count = steps if sampler == "ddim" else last
-    lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler.upper()}, {step_count} steps, seed {seed})")
+    lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler}, {last} steps, seed {seed})")
     if error:
         lines.append(f"**Last solve failed** {error}")
     return "  \n".join(lines)

@@ -89,6 +89,13 @@ class SolveView:
     final_joints: np.ndarray  # (K, N+1, 2) the pose the solver returned (refined when `refined`)
     final_tip_error: np.ndarray  # (K,) the solver's tip error of that pose
     refined: bool  # final_joints is the damped-least-squares polish of joints[-1]
+    estimate_joints: np.ndarray | None = None  # (S, K, N+1, 2) the denoiser's x̂0 at the step into state s+1
+
+    def estimate_at(self, state: int) -> np.ndarray | None:
+        """(K, N+1, 2) what the denoiser believed the final pose to be when it made state `state`; None at t = T."""
+        if self.estimate_joints is None or state < 1:
+            return None
+        return self.estimate_joints[state - 1]
 
     @property
     def num_states(self) -> int:
@@ -108,13 +115,17 @@ class SolveView:
 
 
 def build_view(result: SolveResult, lengths, target) -> SolveView:
-    """The drawable arrays of the first target of a `solver.solve(..., return_trajectory=True)` result."""
+    """The drawable arrays of the first target of a `solver.solve(..., return_trajectory=True)` result.
+
+    With `return_estimates=True` too, the view holds the joints of each step's x̂0.
+    """
     if result.trajectory is None:
         raise ValueError("result: solve with return_trajectory=True, the viewer draws every state")
     lengths = torch.as_tensor(lengths, dtype=torch.float64)
     target = np.asarray(target, dtype=np.float64).reshape(2)
     trajectory = result.trajectory[:, 0].detach().cpu().double()  # (S+1, K, N)
     joints = forward_kinematics(trajectory, lengths).numpy()  # (S+1, K, N+1, 2)
+    estimates = None if result.estimates is None else result.estimates[:, 0].detach().cpu().double()  # (S, K, N)
     final_joints = forward_kinematics(result.angles[0].detach().cpu().double(), lengths).numpy()  # (K, N+1, 2)
     return SolveView(
         target=target,
@@ -125,6 +136,7 @@ def build_view(result: SolveResult, lengths, target) -> SolveView:
         final_joints=final_joints,
         final_tip_error=result.tip_error[0].detach().cpu().double().numpy(),
         refined=not torch.equal(result.angles, result.raw_angles),
+        estimate_joints=None if estimates is None else forward_kinematics(estimates, lengths).numpy(),
     )
 
 

@@ -16,8 +16,9 @@ from viz_helpers import drag_gizmo, running_app, settle
 
 import ikdp
 from ikdp.train import TrainConfig, train
-from ikdp_viz.app import SolveRequest, list_checkpoints, solve
+from ikdp_viz.app import list_checkpoints
 from ikdp_viz.solve_worker import Cancelled
+from ikdp_viz.solving import SolveRequest, solve
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +65,7 @@ def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, so
     assert app.panel.timestep.value == 0
     # the same solve, independently: the app draws what the public API returns for this target and seed
     generator = torch.Generator().manual_seed(int(app.panel.seed.value))
-    out = solver.solve((1.1, -0.7), num_samples=16, generator=generator, return_trajectory=True)
+    out = solver.solve([[1.1, -0.7]], num_samples=16, generator=generator, return_trajectory=True)
     tips = final_polylines(app)[:, -1, 1]  # (K, 2) the end of each final polyline
     tip_error = np.linalg.norm(tips - [1.1, -0.7], axis=-1)
     assert np.allclose(tip_error, out.raw_tip_error[0].numpy(), atol=1e-4)  # within the solver's own error
@@ -120,9 +121,9 @@ def test_a_drag_released_past_the_boundary_still_reads_clamped_and_sends_the_cro
     try:
         # viser's release event carries the position the app last wrote: the boundary point itself
         drag_gizmo(app, *app.gizmo.position[:2], phase="end")
+        settle(app)
     finally:
         app.gizmo._impl.api._queue_scene_message = real_queue
-    settle(app)
     assert np.allclose(app.solved.view.target, [outer, 0.0])
     assert "Clamped to the workspace boundary" in app.panel.target_text.content
     positions = [message.position for message in sent if type(message).__name__ == "SetPositionMessage"]
@@ -150,12 +151,12 @@ def test_samples_and_highlight_change_what_is_drawn(app):
 
 
 def test_ddim_with_fewer_steps_gives_fewer_states(app):
-    app.panel.ddim_steps.value = 5
-    app.panel.sampler.value = "DDIM"
+    app.panel.steps.value = 5
+    app.panel.sampler.value = "ddim"
     settle(app)
     view = app.solved.view
     assert view.num_states == 6 and view.labels[0] == app.panel.timestep.max and view.labels[-1] == 0
-    assert not app.panel.ddim_steps.disabled and "DDIM, 5 steps" in app.panel.readout_text.content
+    assert not app.panel.steps.disabled and "ddim, 5 steps" in app.panel.readout_text.content
     app.panel.timestep.value = view.labels[2] + 1  # between two visited states: the nearest one is shown
     assert app.state == 2
 
@@ -293,3 +294,59 @@ def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):
     assert list(list_checkpoints(tmp_path)) == ["a.pt", "b.pt"]
     assert list(list_checkpoints(tmp_path, elsewhere)) == ["a.pt", "b.pt", str(elsewhere)]
     assert list(list_checkpoints(tmp_path, tmp_path / "a.pt")) == ["a.pt", "b.pt"]
+
+
+@pytest.mark.slow
+def test_a_fuzz_of_moves_sampler_changes_and_reloads_from_several_threads_ends_on_the_newest_target(
+    app, tiny_checkpoint, two_link_checkpoint, capfd
+):
+    """Issue 10's threading design: no exception anywhere, solves drawn in request order, the newest drawn last."""
+    from ikdp.samplers import sampler_names
+
+    app.panel.duration.value = 0.2  # animations run (and get interrupted) throughout
+    failures: list[BaseException] = []
+
+    def run(action, count: int, seed: int) -> None:
+        generator = np.random.default_rng(seed)
+        try:
+            for _ in range(count):
+                action(generator)
+        except BaseException as error:  # noqa: BLE001 - any failure fails the test below
+            failures.append(error)
+
+    def move(generator) -> None:
+        if generator.random() < 0.5:
+            drag_gizmo(app, *generator.uniform(-4, 4, size=2), phase=str(generator.choice(["update", "end"])))
+        else:
+            app.move_target(generator.uniform(-4, 4, size=2))
+
+    def change_sampler(generator) -> None:
+        app.panel.sampler.value = str(generator.choice(sampler_names()))
+        app.panel.steps.value = int(generator.integers(2, 10))
+
+    def reload(generator) -> None:
+        app.load_checkpoint(Path(two_link_checkpoint if generator.random() < 0.5 else tiny_checkpoint))
+
+    def scrub(generator) -> None:
+        app.panel.timestep.value = int(generator.integers(0, app.panel.timestep.max + 1))
+        app.panel.highlight.value = "best"
+
+    threads = [threading.Thread(target=run, args=(move, 40, seed)) for seed in range(3)]
+    threads += [threading.Thread(target=run, args=(change_sampler, 15, 10))]
+    threads += [threading.Thread(target=run, args=(reload, 4, 11))]
+    threads += [threading.Thread(target=run, args=(scrub, 20, 12))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(120)
+    assert not failures, failures
+    app.move_target((0.4, -1.1))  # the newest target of all
+    settle(app)
+    assert np.allclose(app.solved.view.target, [0.4, -1.1]) and np.allclose(app.target, [0.4, -1.1])
+    assert app.solved.request.solver is app.solver and np.allclose(app.gizmo.position[:2], [0.4, -1.1])
+    assert app.solved.view.num_links == app.solver.num_links == app.links.batched_positions.shape[0] // 16
+    arrivals = [arrival for arrival, _, _ in app.latencies]
+    assert arrivals == sorted(arrivals)  # never an older solve drawn after a newer one
+    assert app.latencies[-1][2]  # the last drawn was the newest when it finished
+    assert app.worker.stats.failed == 0
+    assert "Traceback" not in capfd.readouterr().err

@@ -18,13 +18,13 @@ def test_target_text_gives_the_coordinates_and_says_when_the_target_was_clamped(
 
 def test_solve_text_reads_the_shown_step_and_the_end_for_the_highlighted_sample():
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))
-    text = solve_text(view, 1, 0, sampler="ddpm", steps=None, seed=7, refine_steps=0, solve_seconds=0.0314)
+    text = solve_text(view, 1, 0, sampler="ddpm", seed=7, refine_steps=0, solve_seconds=0.0314)
     assert "**Step** 1 of 2 (t = 1)" in text
     assert "sample 1 of 2, the best by tip error at t = 0: 1.4142 now, 0.0000 at t = 0" in text  # counted from 1
     assert "median of K = 2: 1.4142 now, 0.7071 at t = 0" in text
-    assert "**Solve** 31.4 ms (DDPM, 2 steps, seed 7)" in text and "refined" not in text
-    ddim = solve_text(view, 2, 1, sampler="ddim", steps=2, seed=0, refine_steps=0, solve_seconds=0.01, error="boom")
-    assert "(DDIM, 2 steps, seed 0)" in ddim and "**Last solve failed** boom" in ddim
+    assert "**Solve** 31.4 ms (ddpm, 2 steps, seed 7)" in text and "refined" not in text
+    ddim = solve_text(view, 2, 1, sampler="ddim", seed=0, refine_steps=0, solve_seconds=0.01, error="boom")
+    assert "(ddim, 2 steps, seed 0)" in ddim and "**Last solve failed** boom" in ddim
     assert "sample 2 of 2:" in ddim  # not the best: no ranking note
 
 

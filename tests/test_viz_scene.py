@@ -109,7 +109,7 @@ def test_final_pose_is_the_forward_kinematics_of_the_returned_angles(tiny_checkp
     solver = ikdp.load(tiny_checkpoint)
     target = (0.9, 1.3)
     generator = torch.Generator().manual_seed(0)
-    out = solver.solve(target, num_samples=5, refine_steps=refine_steps, generator=generator, return_trajectory=True)
+    out = solver.solve([target], num_samples=5, refine_steps=refine_steps, generator=generator, return_trajectory=True)
     view = build_view(out, solver.lengths, target)
     expected = ikdp.forward_kinematics(out.angles[0].double(), torch.tensor(solver.lengths, dtype=torch.float64))
     assert np.allclose(view.final_joints, expected.numpy(), atol=1e-12)
@@ -216,9 +216,10 @@ def test_importing_the_viewer_does_nothing_and_scene_code_never_imports_viser():
         "out = io.StringIO()\n"
         "with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):\n"
         "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.meshes, ikdp_viz.readouts\n"
-        "    import ikdp_viz.solve_worker, ikdp_viz.player\n"
+        "    import ikdp_viz.solve_worker, ikdp_viz.solving\n"
         "    assert 'viser' not in sys.modules, 'scene-building code imported viser'\n"
-        "    import ikdp_viz.panel, ikdp_viz.app, ikdp_viz.__main__, ikdp_viz.screenshot\n"
+        "    import ikdp_viz.panel, ikdp_viz.session, ikdp_viz.scene_writer, ikdp_viz.app, ikdp_viz.__main__\n"
+        "    import ikdp_viz.screenshot\n"
         "assert out.getvalue() == '', out.getvalue()\n"
         "assert threading.active_count() == before, threading.enumerate()\n"
     )

@@ -1,10 +1,10 @@
-"""The newest-wins solve worker and the animation player, driven by events, never by sleeps."""
+"""The newest-wins solve worker and the animation clock, driven by events and given times, never by sleeps."""
 
 from __future__ import annotations
 
 import threading
 
-from ikdp_viz.player import Player
+from ikdp_viz.scene_writer import Animation
 from ikdp_viz.solve_worker import Cancelled, LatestWorker
 
 
@@ -108,66 +108,10 @@ def test_a_worker_starts_its_thread_only_when_asked_and_stops_on_close():
     assert threading.active_count() == before
 
 
-class FakeClock:
-    """A clock that moves only when told (and by `tick` on each reading): the animation's path is then exact."""
-
-    def __init__(self, tick: float = 0.0):
-        self.now, self.tick = 0.0, tick
-
-    def __call__(self):
-        now = self.now
-        self.now += self.tick
-        return now
-
-
-def test_the_player_shows_the_state_the_clock_has_reached_and_ends_on_the_last():
-    clock, drawn, finished = FakeClock(), [], threading.Event()
-
-    def draw(state):
-        drawn.append(state)
-        clock.now += 0.25  # each frame takes 0.25 s: at 0.1 s per state the player skips states
-        if state == 10:
-            finished.set()
-
-    player = Player(draw, frames_per_second=1000, clock=clock)
-    player.play(0, 10, seconds_per_state=0.1)
-    assert finished.wait(10)
-    player.close()
-    assert drawn == [0, 2, 5, 7, 10]  # int(elapsed / 0.1), capped at the last state
-    assert not player.playing
-
-
-def test_the_player_resumes_from_a_shown_state_and_a_zero_duration_jumps_to_the_end():
-    clock, drawn, finished = FakeClock(tick=0.5), [], threading.Event()  # two readings per state
-
-    def draw(state):
-        drawn.append(state)
-        if state == 8:
-            finished.set()
-
-    player = Player(draw, frames_per_second=1000, clock=clock)
-    player.play(5, 8, seconds_per_state=1.0, first_shown=True)  # 5 is on screen already
-    assert finished.wait(10)
-    finished.clear()
-    player.play(0, 8, seconds_per_state=0.0)
-    assert finished.wait(10)
-    player.close()
-    assert drawn == [6, 7, 8, 8]
-
-
-def test_no_frame_is_drawn_after_pause_returns():
-    clock, drawn, reached = FakeClock(), [], threading.Event()
-
-    def draw(state):
-        drawn.append(state)
-        clock.now += 1.0
-        if state == 3:
-            reached.set()
-
-    player = Player(draw, frames_per_second=1000, clock=clock)
-    player.play(0, 1000, seconds_per_state=1.0)
-    assert reached.wait(10)
-    player.pause()
-    count = len(drawn)
-    player.close()  # joins the thread: anything it could still draw would be drawn by now
-    assert len(drawn) == count and drawn == list(range(count)) and not player.playing
+def test_the_animation_clock_skips_states_rather_than_slowing_and_ends_on_the_last():
+    animation = Animation(first=0, last=10, seconds_per_state=0.1, started_at=100.0)
+    # frames drawn 0.25 s apart: the clock skips states, it never lags behind real time
+    assert [animation.state_at(100.0 + 0.25 * frame) for frame in range(6)] == [0, 2, 5, 7, 10, 10]
+    resumed = Animation(first=5, last=8, seconds_per_state=1.0, started_at=0.0)  # played from a shown state
+    assert [resumed.state_at(now) for now in (0.0, 0.99, 1.0, 2.5, 9.0)] == [5, 5, 6, 7, 8]
+    assert Animation(first=0, last=8, seconds_per_state=0.0, started_at=0.0).state_at(0.0) == 8  # no duration

@@ -52,8 +52,9 @@ def drag_gizmo(app, x: float, y: float, phase: str = "update") -> None:
     """Do what viser does when a browser drags the target's gizmo: set its pose, then fire its callback."""
     import viser
 
-    app.gizmo.position = (x, y, 0.0)
-    event = viser.TransformControlsEvent(client=None, client_id=None, target=app.gizmo, phase=phase)
+    gizmo = app.gizmo
+    gizmo._impl.position = np.array([x, y, 0.0])  # as viser's handler does with the page's message
+    event = viser.TransformControlsEvent(client=None, client_id=None, target=gizmo, phase=phase)
     loop = app.server.get_event_loop()
     asyncio.run_coroutine_threadsafe(app.on_gizmo_update(event), loop).result(timeout=10)
 

@@ -1,0 +1,554 @@
+"""The one thread that writes the viewer's scene and readouts; every other thread sends it messages.
+
+Gizmo callbacks, panel callbacks and the solve worker never touch a scene node:
+they `post()` a message, and this thread applies the messages one at a time, in
+the order they were posted, and plays the animation between them. So nothing it
+draws can be changed under it (the solve on screen, the model, the nodes), and
+a solve of a replaced model or an older target cannot land over a newer one:
+the races of a lock-per-method design are impossible by construction.
+
+What to draw for a state is `scene.py`'s (plain numpy); this file only copies
+those arrays into viser handles.
+"""
+
+from __future__ import annotations
+
+import collections
+import queue
+import threading
+import time
+import traceback
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+import ikdp
+from ikdp_viz import meshes, readouts
+from ikdp_viz.panel import Panel, highlight_index, plot_scales
+from ikdp_viz.scene import (
+    HIGHLIGHT_LIFT,
+    REFINED,
+    REFINED_LIFT,
+    TARGET_LIFT,
+    TIP_DARK,
+    TIP_FAINT,
+    arm_placement,
+    circle_segments,
+    error_curves,
+    fade_colors,
+    nearest_state,
+    polyline_segments,
+    sample_colors,
+    trail_colors,
+    trail_until,
+)
+from ikdp_viz.solving import Solved
+
+TARGET_RED = (220, 25, 25)
+ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
+LINE_PIXELS = 1.5  # trail line thickness, screen pixels
+FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
+
+
+def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(position, look_at) of a camera straight above the workspace of radius `reach`, all of it in view.
+
+    +x to the right and +y up (a hair off the pole so "up" is defined), the workspace a little
+    left of centre, clear of the panel on the right.
+    """
+    distance, shift = 1.55 * reach, 0.25 * reach
+    return (shift, -1e-3 * distance, distance), (shift, 0.0, 0.0)
+
+
+# ------------------------------------------------------------------ messages
+
+
+@dataclass(frozen=True)
+class ShowSolve:
+    solved: Solved  # a finished solve, to draw in place of the one on screen
+    newest: bool  # its target was still the newest when it finished (for the latency benchmark)
+
+
+@dataclass(frozen=True)
+class ShowState:
+    state: int | None = None  # a state index (0 = pure noise .. S = final), or
+    timestep: float | None = None  # the state nearest this diffusion time
+    delta: int = 0  # added to the state on screen (previous / next buttons)
+
+
+@dataclass(frozen=True)
+class TogglePlay:
+    pass
+
+
+@dataclass(frozen=True)
+class ReplayWhenDrawn:
+    target: np.ndarray  # (2,) a drag ended here: play its solve from t = T, now if on screen, else once drawn
+
+
+@dataclass(frozen=True)
+class Redraw:
+    pass  # the highlight, trail or x̂0 setting changed: draw the state on screen again
+
+
+@dataclass(frozen=True)
+class PlaceTarget:
+    target: np.ndarray  # (2,) where the cross goes
+    clamped: bool  # the asked point lay outside the workspace
+    move_gizmo: bool  # write the gizmo's position (False: the page's drag already put it there)
+    force: bool  # send the position even when the server's copy holds it already
+
+
+@dataclass(frozen=True)
+class NewModel:
+    solver: ikdp.Solver  # rebuild the scene for this model; solves of any other are dropped
+    target: np.ndarray  # (2,) the cross's place in the new workspace
+
+
+@dataclass(frozen=True)
+class ShowError:
+    text: str  # why the newest solve failed
+
+
+@dataclass(frozen=True)
+class Call:
+    function: object  # called on the writer's thread with the writer: for the panel's exports and tests
+
+
+@dataclass(frozen=True)
+class Barrier:
+    done: threading.Event  # set once every message posted before it has been applied
+
+
+@dataclass
+class Animation:
+    """The clock of one playing of the denoising: state first at `started_at`, one state per `seconds_per_state`."""
+
+    first: int  # the state shown when it started
+    last: int  # the state it ends on
+    seconds_per_state: float  # 0: jump to the last state
+    started_at: float  # time.monotonic() when `first` was shown
+
+    def state_at(self, now: float) -> int:
+        """The state the clock has reached at `now`: a slow frame skips states, it never slows the animation."""
+        if self.seconds_per_state <= 0:
+            return self.last
+        return min(self.last, self.first + int((now - self.started_at) / self.seconds_per_state))
+
+
+# ------------------------------------------------------------------ the writer
+
+
+class SceneWriter:
+    """Owns the scene nodes, the solve on screen and the animation; applies posted messages on its own thread."""
+
+    def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
+        self.server, self.panel = server, panel
+        self.solver = solver  # the model whose scene is drawn
+        self.target, self.target_clamped = np.asarray(target, dtype=np.float64), False
+        self._gizmo_update = gizmo_update  # the app's gizmo callback, wired to every gizmo this builds
+        self.solved: Solved | None = None  # the solve on screen
+        self.state = 0  # index of the state on screen
+        self.error: str | None = None  # the newest solve's failure, shown in the readouts
+        self.animation: Animation | None = None  # the playing animation, None when still
+        self._replay_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
+        # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
+        # still the newest; for benchmarks/viz_latency.py
+        self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
+        self._queue: queue.Queue = queue.Queue()
+        self._busy = False  # a message is being applied
+        self._closed = False
+        self._thread: threading.Thread | None = None  # started by the first post(), not at construction
+        self._thread_lock = threading.Lock()
+        self.nodes_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
+        self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
+        self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
+        self.trail = self.links = self.joints = self.tips = None
+        self.refined_lines = self.refined_tips = self.estimate_lines = None
+        self._static_nodes: list = []
+        # No environment map: its reflections wash dark materials out to grey; the default lights stay.
+        server.scene.configure_environment_map(hdri=None)
+        self._build_static_scene()  # before any thread exists: the app's constructor is the only writer yet
+
+    # -------------------------------------------------------------- the queue
+
+    def post(self, message) -> None:
+        """Queue `message` for the writer's thread (any thread may post)."""
+        with self._thread_lock:
+            if self._closed:
+                return
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name="ikdp-viz-scene", daemon=True)
+                self._thread.start()
+        self._queue.put(message)
+
+    def flush(self, timeout: float = 30.0) -> bool:
+        """Block until every message posted so far has been applied (True), or `timeout` passes (False)."""
+        if threading.current_thread() is self._thread:
+            return True
+        done = threading.Event()
+        self.post(Barrier(done))
+        return done.wait(timeout) or self._closed
+
+    @property
+    def playing(self) -> bool:
+        return self.animation is not None
+
+    @property
+    def still(self) -> bool:
+        """No message waiting or being applied, and no animation playing."""
+        return self._queue.empty() and not self._busy and self.animation is None
+
+    def close(self, timeout: float = 2.0) -> None:
+        with self._thread_lock:
+            self._closed, thread = True, self._thread
+        self._queue.put(None)
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+
+    def _run(self) -> None:
+        while True:
+            wait = None if self.animation is None else 1.0 / FRAMES_PER_SECOND
+            try:
+                message = self._queue.get(timeout=wait)
+            except queue.Empty:
+                message = ()  # the animation's clock ticked
+            if message is None:
+                return
+            self._busy = True
+            try:
+                if message != ():
+                    self._apply(message)
+                self._tick()
+            except Exception:
+                traceback.print_exc()  # a failed frame is reported; the writer goes on
+                self.animation = None
+            finally:
+                self._busy = False
+
+    def _apply(self, message) -> None:
+        if isinstance(message, ShowSolve):
+            self._show_solve(message)
+        elif isinstance(message, ShowState):
+            self.animation = None  # a user's step pauses the animation
+            if self.solved is not None:
+                state = self.state + message.delta if message.state is None else message.state
+                if message.timestep is not None:
+                    state = nearest_state(self.solved.view.labels, message.timestep)
+                self._draw_state(state)
+        elif isinstance(message, TogglePlay):
+            self._toggle_play()
+        elif isinstance(message, ReplayWhenDrawn):
+            self._replay_target = message.target
+            if self.solved is not None and np.array_equal(self.solved.request.target, message.target):
+                self._replay_target = None
+                self._play_from_start(user=False)
+        elif isinstance(message, Redraw):
+            if self.solved is not None:
+                self._recolor()
+                self._draw_state(self.state)
+        elif isinstance(message, PlaceTarget):
+            self._place_target(message)
+        elif isinstance(message, NewModel):
+            self._new_model(message)
+        elif isinstance(message, ShowError):
+            self.error = message.text
+            self._write_readouts()
+        elif isinstance(message, Call):
+            message.function(self)
+        elif isinstance(message, Barrier):
+            message.done.set()
+        else:
+            raise TypeError(f"message: expected one of the scene writer's messages, got {message!r}")
+
+    # -------------------------------------------------------------- solves and the animation
+
+    def _show_solve(self, message: ShowSolve) -> None:
+        solved = message.solved
+        if solved.request.solver is not self.solver:
+            return  # a solve of the model that was replaced
+        self.animation = None
+        self.solved, self.error = solved, None
+        self._recolor()
+        self._ensure_arm_nodes()
+        self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
+        self._write_refined()
+        last = solved.view.num_states - 1
+        released = self._replay_target is not None and np.array_equal(solved.request.target, self._replay_target)
+        if released:
+            self._replay_target = None
+        wanted = solved.request.animate or released
+        animate = wanted and self.panel.play_on_move.value and self.panel.duration.value > 0 and last > 0
+        self._draw_state(0 if animate else last)
+        self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
+        if animate:
+            self._start(0, last)
+
+    def _play_from_start(self, *, user: bool) -> None:
+        """Play the solve on screen from t = T: on a user's Play, or (if "play on move" is on) after a drag."""
+        if self.solved is None or self.panel.duration.value <= 0:
+            return
+        if not user and not self.panel.play_on_move.value:
+            return
+        self._draw_state(0)
+        self._start(0, self.solved.view.num_states - 1)
+
+    def _toggle_play(self) -> None:
+        """Pause a running animation, or play from the current step (from t = T when at the end)."""
+        if self.animation is not None:
+            self.animation = None
+        elif self.solved is not None:
+            last = self.solved.view.num_states - 1
+            if self.state >= last:
+                self._play_from_start(user=True)
+            else:
+                self._start(self.state, last)
+        self._write_play_label()
+
+    def _start(self, first: int, last: int) -> None:
+        seconds_per_state = self.panel.duration.value / max(last, 1)
+        self.animation = Animation(first, last, seconds_per_state, time.monotonic())
+        self._write_play_label()
+        self._tick()
+
+    def _tick(self) -> None:
+        """Draw the state the animation's clock has reached, and end the animation on its last state."""
+        animation = self.animation
+        if animation is None or self.solved is None:
+            self.animation = None
+            return
+        state = animation.state_at(time.monotonic())
+        if state != self.state:
+            self._draw_state(state)
+        if state >= animation.last:
+            self.animation = None
+            self._write_play_label()
+
+    # -------------------------------------------------------------- the target and the model
+
+    def _place_target(self, message: PlaceTarget) -> None:
+        self.target, self.target_clamped = message.target, message.clamped
+        if message.move_gizmo:
+            # viser skips a position equal to its copy, but while a drag goes past the boundary the page's
+            # gizmo follows the pointer beyond the clamped point the server holds: on release, send it again.
+            position = np.array([float(message.target[0]), float(message.target[1]), 0.0])
+            if message.force:
+                self.gizmo.position = position + (1e-3, 0.0, 0.0)
+            self.gizmo.position = position
+        self.panel.target_text.content = readouts.target_text(self.target, self.target_clamped, self.solver.reach)
+
+    def _new_model(self, message: NewModel) -> None:
+        self.animation = None
+        self.solver, self.solved, self.target = message.solver, None, message.target
+        self._remove_arm_nodes()
+        self._build_static_scene()
+        num_timesteps = message.solver.timesteps
+        self.panel.timestep.max = num_timesteps
+        self.panel.steps.max = num_timesteps
+        self.panel.steps.value = min(self.panel.steps.value, num_timesteps)
+        self.panel.target_text.content = readouts.target_text(self.target, self.target_clamped, self.solver.reach)
+        self._write_readouts()
+
+    # -------------------------------------------------------------- drawing one state
+
+    def _recolor(self) -> None:
+        view = self.solved.view
+        self._colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
+        self._trail_colors = trail_colors(self._colors, view.num_links)
+
+    def highlight_index(self) -> int:
+        """The 0-based sample the highlight dropdown names, for the solve on screen (0 before any)."""
+        view = self.solved.view if self.solved is not None else None
+        if view is None:
+            return 0
+        return highlight_index(self.panel.highlight.value, view.best_sample(), view.num_samples)
+
+    def _draw_state(self, state: int) -> None:
+        """Write one frame: the trail up to `state`, the arms (and x̂0) at `state`, the readouts."""
+        solved = self.solved
+        if solved is None:
+            return
+        view = solved.view
+        last = view.num_states - 1
+        state = int(np.clip(state, 0, last))
+        self.state = state
+        highlight = self.highlight_index()
+        num_samples, num_links = view.num_samples, view.num_links
+        lift = HIGHLIGHT_LIFT * self.sizes.joint
+        placement = arm_placement(view.joints[state], view.lengths, raised=highlight, lift=lift)
+        colors = self._colors[state]  # (K, 3)
+        tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
+        estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
+        with self.server.atomic():
+            if self.panel.show_trail.value:
+                points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
+                self.trail.points = points
+                self.trail.colors = segment_colors
+                self.trail.visible = True
+            else:
+                self.trail.visible = False
+            if estimate is not None:
+                self.estimate_lines.points = polyline_segments(estimate, z=0.5 * REFINED_LIFT * self.sizes.joint)
+                self.estimate_lines.visible = True
+            else:
+                self.estimate_lines.visible = False
+            self.links.batched_positions = placement.link_positions
+            self.links.batched_wxyzs = placement.link_wxyzs
+            self.links.batched_scales = placement.link_scales
+            self.links.batched_colors = np.repeat(colors, num_links, axis=0)
+            self.joints.batched_positions = placement.joint_positions
+            self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
+            self.tips.batched_positions = placement.tip_positions
+            self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
+            for node in (self.links, self.joints, self.tips):
+                node.visible = True
+            final_shown = state == last and view.refined
+            self.refined_lines.visible = final_shown
+            self.refined_tips.visible = final_shown
+            self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
+            self.panel.plot.data = error_curves(view, highlight, state)
+            self._write_readouts()
+            self._write_play_label()
+
+    def _write_play_label(self) -> None:
+        playing = self.animation is not None
+        self.panel.play_button.label = "Pause" if playing else "Play"
+        self.panel.play_button.icon = viser.Icon.PLAYER_PAUSE if playing else viser.Icon.PLAYER_PLAY
+
+    def _write_readouts(self) -> None:
+        solved = self.solved
+        if solved is None:
+            failed = f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
+            self.panel.readout_text.content = failed
+            return
+        request = solved.request
+        self.panel.readout_text.content = readouts.solve_text(
+            solved.view, self.state, self.highlight_index(), sampler=request.sampler, seed=request.seed,
+            refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, error=self.error,
+        )  # fmt: skip
+
+    # -------------------------------------------------------------- nodes
+
+    def _build_static_scene(self) -> None:
+        """Grid, workspace boundary, base and the target's gizmo, sized to the current arm; the camera fitted."""
+        scene = self.server.scene
+        for handle in self._static_nodes:
+            handle.remove()
+        lengths = self.solver.lengths
+        self.sizes = meshes.ArmSizes.for_lengths(lengths)
+        inner, outer = self.solver.reach
+        unit = float(np.mean(lengths))
+        extent = 2 * float(np.ceil((outer + unit) / unit)) * unit
+        nodes = [
+            scene.add_grid(
+                "/grid",
+                width=extent,
+                height=extent,
+                plane="xy",
+                cell_size=unit / 4,
+                section_size=unit,
+                cell_color=(236, 236, 236),
+                section_color=(212, 212, 212),
+                position=(0.0, 0.0, -0.02 * unit),
+                shadow_opacity=0.0,
+            )  # fmt: skip
+        ]
+        for name, radius in (("outer", outer), ("inner", inner)):
+            if radius > 0:
+                nodes.append(
+                    scene.add_line_segments(
+                        f"/workspace/{name}",
+                        circle_segments(radius, z=-0.01 * unit),
+                        colors=(150, 150, 150),
+                        thickness=LINE_PIXELS,
+                        thickness_units="screen",
+                    )  # fmt: skip
+                )
+        base = meshes.base_mesh(self.sizes.base)
+        nodes.append(
+            scene.add_mesh_simple(
+                "/base", base.vertices, base.faces, color=(90, 90, 90), cast_shadow=False, receive_shadow=False
+            )
+        )
+        self.gizmo = scene.add_transform_controls(
+            "/target", scale=0.7 * unit, active_axes=(True, True, False), disable_rotations=True,
+            translation_limits=((-outer, outer), (-outer, outer), (0.0, 0.0)), depth_test=False,
+            position=(float(self.target[0]), float(self.target[1]), 0.0),
+        )  # fmt: skip
+        self.gizmo.on_update(self._gizmo_update)
+        cross = meshes.cross_mesh(self.sizes.cross)
+        self.cross = scene.add_mesh_simple(
+            "/target/cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
+            position=(0.0, 0.0, TARGET_LIFT * self.sizes.joint),
+        )  # fmt: skip
+        self._static_nodes = [*nodes, self.gizmo]
+        position, look_at = camera_fit(outer)
+        self.server.initial_camera.position, self.server.initial_camera.look_at = position, look_at
+        for client in self.server.get_clients().values():  # open tabs too: the new arm may reach farther
+            with client.atomic():
+                client.camera.position, client.camera.look_at = position, look_at
+
+    def _ensure_arm_nodes(self) -> None:
+        """(Re)create the arm's nodes when K or N changed: a batched node keeps its instance count."""
+        view = self.solved.view
+        shape = (view.num_samples, view.num_links)
+        if shape == self.nodes_shape:
+            return
+        self._remove_arm_nodes()
+        scene = self.server.scene
+        num_samples, num_links = shape
+        links, joints, tips = (instances * num_samples for instances in (num_links, num_links + 1, 1))
+        identity = lambda count: np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))  # noqa: E731
+        origin = lambda count: np.zeros((count, 3))  # noqa: E731
+        options = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
+        link, joint, tip = (
+            meshes.link_mesh(self.sizes.link),
+            meshes.sphere_mesh(self.sizes.joint),
+            meshes.sphere_mesh(self.sizes.tip, 1),
+        )
+        lines = dict(thickness_units="screen", visible=False)
+        self.trail = scene.add_line_segments(
+            "/arm/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS, **lines
+        )
+        self.estimate_lines = scene.add_line_segments(
+            "/arm/estimate", np.zeros((1, 2, 3)), colors=ESTIMATE, thickness=2 * LINE_PIXELS, **lines
+        )
+        self.links = scene.add_batched_meshes_simple(
+            "/arm/links", link.vertices, link.faces, identity(links), origin(links),
+            batched_scales=np.ones((links, 3)), batched_colors=np.zeros((links, 3), np.uint8), **options,
+        )  # fmt: skip
+        self.joints = scene.add_batched_meshes_simple(
+            "/arm/joints", joint.vertices, joint.faces, identity(joints), origin(joints),
+            batched_colors=np.zeros((joints, 3), np.uint8), **options,
+        )  # fmt: skip
+        self.tips = scene.add_batched_meshes_simple(
+            "/arm/tips", tip.vertices, tip.faces, identity(tips), origin(tips),
+            batched_colors=np.zeros((tips, 3), np.uint8), **options,
+        )  # fmt: skip
+        self.refined_lines = scene.add_line_segments(
+            "/arm/refined", np.zeros((1, 2, 3)), colors=REFINED, thickness=3 * LINE_PIXELS, **lines
+        )
+        self.refined_tips = scene.add_batched_meshes_simple(
+            "/arm/refined_tips", tip.vertices, tip.faces, identity(num_samples), origin(num_samples),
+            batched_colors=np.broadcast_to(np.array(REFINED, np.uint8), (num_samples, 3)), **options,
+        )  # fmt: skip
+        self.nodes_shape = shape
+
+    def _write_refined(self) -> None:
+        view = self.solved.view
+        lift = REFINED_LIFT * self.sizes.joint  # above the other arms, under the highlighted one
+        self.refined_lines.points = polyline_segments(view.final_joints, z=lift)
+        self.refined_lines.colors = np.broadcast_to(
+            np.array(REFINED, np.uint8), (view.num_samples * view.num_links, 2, 3)
+        )
+        tips = np.concatenate((view.final_joints[:, -1], np.full((view.num_samples, 1), lift)), axis=-1)
+        self.refined_tips.batched_positions = tips
+
+    def _remove_arm_nodes(self) -> None:
+        for name in ("trail", "estimate_lines", "links", "joints", "tips", "refined_lines", "refined_tips"):
+            handle = getattr(self, name, None)
+            if handle is not None:
+                handle.remove()
+                setattr(self, name, None)
+        self.nodes_shape = None

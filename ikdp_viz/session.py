@@ -1,0 +1,66 @@
+"""The state of one viewer session: the model, the target, and the panel's sampling settings as a request.
+
+Every browser tab shares one session. Moves and model switches come from viser's
+event loop, its callback threads and scripts at once; the lock makes each change
+of the target one step, so the order of the targets is the order of the requests.
+"""
+
+from __future__ import annotations
+
+import random
+import threading
+import time
+
+import numpy as np
+
+import ikdp
+from ikdp.samplers import SAMPLERS
+from ikdp_viz.panel import Panel
+from ikdp_viz.scene import clamp_to_workspace
+from ikdp_viz.solving import SolveRequest
+
+
+def initial_target(solver: ikdp.Solver, target=None) -> np.ndarray:
+    """(2,) `target` clamped into the solver's workspace; a point up and to the right when None."""
+    inner, outer = solver.reach
+    point = np.array(target if target is not None else (0.55 * outer, 0.3 * outer), dtype=np.float64)
+    return clamp_to_workspace(point, inner, outer)[0]
+
+
+class Session:
+    """The model and the target; `lock` is held while either changes and its consequences are posted."""
+
+    def __init__(self, solver: ikdp.Solver, target=None):
+        self.lock = threading.RLock()
+        self.solver = solver  # the model the newest requests use
+        self.target = initial_target(solver, target)  # (2,) inside the workspace
+        self.target_clamped = False  # the point asked for lay outside the workspace
+
+    def move(self, point, *, from_gizmo: bool) -> tuple[np.ndarray, bool, bool]:
+        """Clamp `point` into the workspace and make it the target: (target, clamped, changed). Hold `lock`."""
+        inner, outer = self.solver.reach
+        target, clamped = clamp_to_workspace(point, inner, outer)
+        changed = not np.array_equal(target, self.target)
+        # A drag past the boundary ends on the boundary point the app put the gizmo at: still the clamped request.
+        clamped = clamped or (not changed and from_gizmo and self.target_clamped)
+        self.target, self.target_clamped = target, clamped
+        return target, clamped, changed
+
+    def request(self, panel: Panel, *, arrival: float | None = None, animate: bool = True) -> SolveRequest:
+        """A solve of the current target with the panel's settings (a new seed first, if the panel asks)."""
+        if panel.new_seed.value:
+            panel.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
+        sampler = str(panel.sampler.value)
+        if sampler not in SAMPLERS:
+            raise ValueError(f"sampler: expected one of {tuple(SAMPLERS)}, got {sampler!r}")
+        return SolveRequest(
+            solver=self.solver,
+            target=self.target.copy(),
+            num_samples=int(panel.samples.value),
+            sampler=sampler,
+            steps=int(panel.steps.value) if SAMPLERS[sampler].supports_steps else None,
+            refine_steps=int(panel.refine_steps.value) if panel.refine.value else 0,
+            seed=int(panel.seed.value),
+            arrival=time.perf_counter() if arrival is None else arrival,
+            animate=animate,
+        )

@@ -1,0 +1,75 @@
+"""One solve of the viewer: the request as the panel set it, the core's solve, its drawable arrays.
+
+Runs on the solve worker's thread (solve_worker.LatestWorker). A newer request stops a
+running solve through the core's per-step callback: `stop_when` is the one place that
+knows how.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+import ikdp
+from ikdp_viz.scene import SolveView, build_view, trail_points
+from ikdp_viz.solve_worker import Cancelled
+
+
+@dataclass(frozen=True)
+class SolveRequest:
+    """One solve, with the panel's settings as they were when it was asked for."""
+
+    solver: ikdp.Solver
+    target: np.ndarray  # (2,) inside the workspace
+    num_samples: int  # K
+    sampler: str  # a name of ikdp.samplers.SAMPLERS
+    steps: int | None  # the sampler's number of steps; None: all T (and for samplers that always take T)
+    refine_steps: int  # 0: no damped-least-squares polish
+    seed: int  # of the solve's torch.Generator
+    arrival: float  # time.perf_counter() when the move (or settings change) arrived
+    animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
+
+
+@dataclass(frozen=True)
+class Solved:
+    request: SolveRequest  # what was asked
+    view: SolveView  # what is drawn
+    trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
+    solve_seconds: float  # solver.solve alone
+
+
+def stop_when(cancel: threading.Event):
+    """The solve's per-step callback: stop after the step under way once `cancel` is set."""
+    return lambda step_index, timestep, state, estimate: cancel.is_set()
+
+
+def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solved:
+    """Run the reverse diffusion for one request and build its drawable arrays (worker thread).
+
+    Raises Cancelled, part-way, once `cancel` is set: a newer request has arrived.
+    """
+    cancel = cancel if cancel is not None else threading.Event()
+    if cancel.is_set():
+        raise Cancelled
+    generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
+    started = time.perf_counter()
+    result = request.solver.solve(
+        request.target[None],  # (1, 2): one target
+        num_samples=request.num_samples,
+        sampler=request.sampler,
+        steps=request.steps,
+        refine_steps=request.refine_steps,
+        generator=generator,
+        return_trajectory=True,
+        return_estimates=True,
+        callback=stop_when(cancel),
+    )
+    if result.stopped:
+        raise Cancelled
+    solve_seconds = time.perf_counter() - started
+    view = build_view(result, request.solver.lengths, request.target)
+    return Solved(request, view, trail_points(view.joints), solve_seconds)
