@@ -218,6 +218,23 @@ def arm_placement(joints: np.ndarray, lengths, *, raised: int | None = None, lif
     )
 
 
+def grid_segments(half_width: float, cell: float, section: float, z: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A square grid of lines |x|, |y| <= half_width as segments (M, 2, 3), and whether each is a section line (M,).
+
+    Lines every `cell`; those on a multiple of `section` are section lines. Drawn as line segments:
+    viser's own grid is a full-screen shader that software WebGL renders at a few frames a second.
+    """
+    count = int(round(half_width / cell))
+    offsets = cell * np.arange(-count, count + 1)  # (2*count+1,)
+    ends = np.full_like(offsets, half_width)
+    vertical = np.stack((np.stack((offsets, -ends), -1), np.stack((offsets, ends), -1)), axis=1)  # (L, 2, 2)
+    horizontal = vertical[..., ::-1]
+    segments = np.concatenate((vertical, horizontal))
+    points = np.concatenate((segments, np.full(segments.shape[:-1] + (1,), z)), axis=-1)
+    ratio = np.concatenate((offsets, offsets)) / section
+    return points, np.isclose(ratio, np.round(ratio))
+
+
 def circle_segments(radius: float, count: int = 256, z: float = 0.0) -> np.ndarray:
     """A circle about the origin as `count` segments, (count, 2, 3)."""
     angles = np.linspace(0.0, 2 * np.pi, count + 1)

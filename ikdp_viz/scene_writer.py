@@ -37,6 +37,7 @@ from ikdp_viz.scene import (
     circle_segments,
     error_curves,
     fade_colors,
+    grid_segments,
     nearest_state,
     polyline_segments,
     sample_colors,
@@ -46,6 +47,8 @@ from ikdp_viz.scene import (
 from ikdp_viz.solving import Solved
 
 TARGET_RED = (220, 25, 25)
+GRID_CELL = (236, 236, 236)  # grid lines every quarter bone length
+GRID_SECTION = (212, 212, 212)  # grid lines every mean bone length
 ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
@@ -440,20 +443,10 @@ class SceneWriter:
         inner, outer = self.solver.reach
         unit = float(np.mean(lengths))
         extent = 2 * float(np.ceil((outer + unit) / unit)) * unit
-        nodes = [
-            scene.add_grid(
-                "/grid",
-                width=extent,
-                height=extent,
-                plane="xy",
-                cell_size=unit / 4,
-                section_size=unit,
-                cell_color=(236, 236, 236),
-                section_color=(212, 212, 212),
-                position=(0.0, 0.0, -0.02 * unit),
-                shadow_opacity=0.0,
-            )  # fmt: skip
-        ]
+        grid, sections = grid_segments(extent / 2, unit / 4, unit, z=-0.02 * unit)
+        grid_colors = np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8)
+        grid_colors = np.broadcast_to(grid_colors, grid.shape).copy()
+        nodes = [scene.add_line_segments("/grid", grid, colors=grid_colors, thickness=1.0, thickness_units="screen")]
         for name, radius in (("outer", outer), ("inner", inner)):
             if radius > 0:
                 nodes.append(

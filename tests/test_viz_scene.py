@@ -24,6 +24,7 @@ from ikdp_viz.scene import (
     clamp_to_workspace,
     error_curves,
     fade_colors,
+    grid_segments,
     nearest_state,
     polyline_segments,
     sample_colors,
@@ -179,6 +180,15 @@ def test_arm_placement_puts_each_scaled_link_between_its_joints():
     heights = placement.joint_positions[:, 2].reshape(4, 4)
     assert np.allclose(heights[2], 0.1) and np.allclose(heights[[0, 1, 3]], 0.0)  # the highlighted arm on top
     assert np.allclose(placement.tip_positions[:, :2], joints[:, -1])
+
+
+def test_grid_segments_cover_the_square_with_a_section_line_every_section():
+    points, sections = grid_segments(2.0, 0.5, 1.0, z=-0.1)
+    assert points.shape == (2 * 9, 2, 3) and sections.shape == (18,)
+    assert np.allclose(points[..., 2], -0.1) and np.abs(points[..., :2]).max() == 2.0
+    vertical = points[:9]
+    assert np.allclose(vertical[:, 0, 0], vertical[:, 1, 0]) and np.allclose(vertical[:, 0, 0], np.arange(-2, 2.1, 0.5))
+    assert sections[:9].tolist() == [True, False, True, False, True, False, True, False, True]  # x = -2, -1, 0, 1, 2
 
 
 def test_circle_segments_lie_on_the_circle():

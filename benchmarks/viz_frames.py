@@ -1,0 +1,152 @@
+"""Frames per second the viewer's page renders in headless chromium while the denoising plays, at K = 1, 16, 64.
+
+    python benchmarks/viz_frames.py                      # the shipped ikdp_n4, a 4 s animation
+    python benchmarks/viz_frames.py --samples 16 --seconds 2
+
+The app runs in-process on a free port; Debian's chromium (software WebGL, the
+flags of tests/viz_helpers.py) opens it. For each K the page counts its
+requestAnimationFrame callbacks over the animation, and, as the baseline timed in
+the same run, over as long a time with the final pose standing still. The server
+side counts the states it wrote. Prints a table and writes JSON (medians of
+`--repeats` runs). Issue 10's target: >= 15 frames/s while K = 16 animates.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import platform
+import statistics
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
+COUNT_FRAMES = """(seconds) => new Promise((done) => {
+  let frames = 0; const start = performance.now();
+  const tick = (now) => { frames += 1; if (now - start < seconds * 1000) requestAnimationFrame(tick);
+                          else done([frames, (now - start) / 1000]); };
+  requestAnimationFrame(tick);
+})"""
+
+
+@dataclass(frozen=True)
+class FramesConfig:
+    """Frames per second of the viewer's page while the denoising plays."""
+
+    ckpt: str = "ikdp_n4"  # a shipped model's name or a checkpoint's path
+    samples: tuple[int, ...] = (1, 16, 64)  # the K to measure
+    seconds: float = 4.0  # animation duration (the viewer's default)
+    repeats: int = 3  # runs per K; the table gives medians
+    target: tuple[float, float] = (-0.010, 1.200)  # the target solved
+    chromium: str = "/usr/bin/chromium"  # browser executable
+    output: Path = Path("benchmarks/results/viz_frames.json")  # JSON written here
+
+
+@dataclass(frozen=True)
+class Row:
+    samples: int  # K
+    animating_fps: float  # page frames per second while the denoising plays (median)
+    still_fps: float  # page frames per second with the final pose standing (median): the baseline
+    states_per_second: float  # states the server wrote per second of animation (median)
+    states: int  # states in one solve (S + 1)
+
+
+def measure(config: FramesConfig) -> list[Row]:
+    import torch
+    import viser
+    from playwright.sync_api import sync_playwright
+
+    import ikdp
+    from ikdp_viz.app import VizApp
+
+    torch.set_num_threads(1)
+    solver = ikdp.load(config.ckpt)
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = VizApp(server, solver, solve_now=False, animation_seconds=0.0, target=config.target)
+    rows = []
+    try:
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=config.chromium, args=CHROMIUM_ARGS)
+            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page.goto(f"http://127.0.0.1:{server.get_port()}")
+            page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
+            for samples in config.samples:
+                app.panel.samples.value = samples
+                app.move_target(config.target)
+                assert app.wait_until_still(120), "the solve did not finish"
+                page.evaluate(COUNT_FRAMES, 2.0)  # let the page take in the new nodes first
+                animating, still, written = [], [], []
+                for _ in range(config.repeats):
+                    frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)
+                    still.append(frames / elapsed)
+                    app.panel.duration.value = config.seconds
+                    drawn = count_states(app)
+                    app.toggle_play()  # at the end: plays from t = T
+                    frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)
+                    animating.append(frames / elapsed)
+                    assert app.wait_until_still(120)
+                    written.append((count_states(app) - drawn) / config.seconds)
+                    app.panel.duration.value = 0.0
+                rows.append(
+                    Row(samples, statistics.median(animating), statistics.median(still),
+                        statistics.median(written), app.solved.view.num_states)
+                )  # fmt: skip
+                print(f"K={samples}: {rows[-1]}", flush=True)
+            browser.close()
+    finally:
+        app.close()
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
+    return rows
+
+
+def count_states(app) -> int:
+    """How many states the writer has drawn so far (a counter the benchmark installs on first use)."""
+    writer = app.writer
+    if not hasattr(writer, "_frames_drawn"):
+        draw = writer._draw_state
+        writer._frames_drawn = 0
+
+        def counting(state: int) -> None:
+            writer._frames_drawn += 1
+            draw(state)
+
+        writer._draw_state = counting
+    return writer._frames_drawn
+
+
+def main(argv: list[str] | None = None) -> None:
+    import tyro
+
+    config = tyro.cli(FramesConfig, args=argv)
+    started = time.time()
+    rows = measure(config)
+    print(f"\n{'K':>4} {'animating fps':>14} {'still fps':>10} {'states/s':>9} {'states':>7}")
+    for row in rows:
+        print(
+            f"{row.samples:>4} {row.animating_fps:>14.1f} {row.still_fps:>10.1f} "
+            f"{row.states_per_second:>9.1f} {row.states:>7}"
+        )
+    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
+    result = {
+        "config": {key: str(value) if isinstance(value, Path) else value for key, value in asdict(config).items()},
+        "rows": [asdict(row) for row in rows],
+        "machine": {"platform": platform.platform(), "python": sys.version.split()[0], "load_average": load},
+        "seconds": round(time.time() - started, 1),
+        "median_of": config.repeats,
+        "target_fps_at_16": 15.0,
+        "met_at_16": bool(np.any([row.animating_fps >= 15.0 for row in rows if row.samples == 16])),
+    }
+    config.output.parent.mkdir(parents=True, exist_ok=True)
+    config.output.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {config.output}")
+
+
+if __name__ == "__main__":
+    main()
