@@ -3,6 +3,7 @@
     python -m ikdp_viz                                   # the shipped ikdp_n4
     python -m ikdp_viz --ckpt ikdp_n8 --port 8081        # another shipped model, or a checkpoint's path
     python -m ikdp_viz --host 0.0.0.0                    # let other machines connect
+    python -m ikdp_viz --target -0.01 1.2 --seed 0 --sampler ddim --steps 10   # reproduce what you saw
 
 A checkpoint that cannot be used, a port outside 0..65535 or a host that cannot
 be listened on is a one-line error and exit status 2;
@@ -31,12 +32,48 @@ class VizConfig:
     host: str = "127.0.0.1"  # address to listen on; 0.0.0.0 lets other machines connect
     port: int = 8080  # port to listen on; if taken, the next free one
     device: str = "cpu"  # torch device the model runs on: cpu, cuda, cuda:1, ...
+    target: tuple[float, float] | None = None  # X Y of the first target (None: up and to the right); for bug reports
+    samples: int = 16  # samples K, 1 to 64
+    sampler: str = "ddpm"  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m
+    steps: int = 20  # reverse steps of a sampler that can skip some (not ddpm)
+    seed: int = 0  # sampling seed
+    refine_steps: int = 0  # damped-least-squares steps after sampling; 0: none
 
 
 def parse_config(argv: list[str] | None = None) -> VizConfig:
     import tyro  # here: importing this module does nothing
 
     return tyro.cli(VizConfig, args=argv, prog="ikdp-viz", description=VizConfig.__doc__)
+
+
+def check_settings(config: VizConfig) -> None:
+    """Exit 2 with one line for a sampling setting the panel cannot show."""
+    from ikdp.samplers import SAMPLERS
+    from ikdp_viz.panel import MAX_SAMPLES
+
+    if config.sampler not in SAMPLERS:
+        fail(f"--sampler {config.sampler}: expected one of {', '.join(SAMPLERS)}")
+    for name, value, low, high in (
+        ("samples", config.samples, 1, MAX_SAMPLES),
+        ("steps", config.steps, 1, 10_000),
+        ("refine-steps", config.refine_steps, 0, 50),
+        ("seed", config.seed, 0, 2**31 - 1),
+    ):
+        if not low <= value <= high:
+            fail(f"--{name} {value}: expected {low} to {high}")  # fmt: skip
+
+
+def apply_settings(app, config: VizConfig) -> None:
+    """Set the panel as the flags ask, then solve the first target."""
+    panel = app.panel
+    panel.samples.value = config.samples
+    panel.sampler.value = config.sampler
+    panel.steps.value = min(config.steps, panel.steps.max)
+    panel.seed.value = config.seed
+    if config.refine_steps:
+        panel.refine_steps.value = config.refine_steps
+        panel.refine.value = True
+    app.move_target(config.target if config.target is not None else app.target)
 
 
 def fail(message: str) -> None:
@@ -84,6 +121,7 @@ def load_solver(path: Path, device: str):
 def main(argv: list[str] | None = None) -> None:
     config = parse_config(argv)
     check_address(config.host, config.port)
+    check_settings(config)
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops as cleanly as Ctrl-C
     server = app = None
     try:
@@ -103,7 +141,9 @@ def main(argv: list[str] | None = None) -> None:
             solver,
             checkpoints=list_checkpoints(shipped_dir(), path),
             checkpoint_folder=shipped_dir(),
+            solve_now=False,
         )
+        apply_settings(app, config)
         port = server.get_port()
         shown_host = "localhost" if config.host in ("0.0.0.0", "::", "") else config.host
         print(f"ikdp-viz: open http://{shown_host}:{port}", flush=True)

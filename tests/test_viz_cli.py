@@ -11,6 +11,7 @@ import sys
 import urllib.request
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -55,9 +56,11 @@ def test_help_lists_every_option_once_with_its_one_default():
     result = run_cli("--help")
     assert result.returncode == 0
     text = " ".join(result.stdout.replace("│", " ").split())  # the help box wraps lines
-    for option, default in (("--ckpt", "ikdp_n4"), ("--host", "127.0.0.1"), ("--port", "8080"), ("--device", "cpu")):
-        assert text.count(f"{option} ") == 2, text  # in the usage line and in the list, once each
-        entry = text.split(f"{option} ")[2].split("--")[0]
+    options = (("--ckpt", "ikdp_n4"), ("--host", "127.0.0.1"), ("--port", "8080"), ("--device", "cpu"),
+               ("--target", "None"), ("--samples", "16"), ("--sampler", "ddpm"), ("--seed", "0"))  # fmt: skip
+    for option, default in options:
+        assert text.count(f"{option} ") == 1, text  # listed once
+        entry = text.split(f"{option} ")[1].split(" --")[0]
         assert entry.count("(default:") == 1 and f"(default: {default})" in entry, entry
     assert "(default: )" not in text
 
@@ -69,6 +72,8 @@ def test_help_lists_every_option_once_with_its_one_default():
         (("--port", "70000"), "--port 70000: expected a port from 0 to 65535"),
         (("--host", "10.254.254.254", "--port", "0"), "--host 10.254.254.254: cannot listen there"),
         (("--host", "no.such.host.invalid", "--port", "0"), "--host no.such.host.invalid: cannot listen there"),
+        (("--sampler", "euler"), "--sampler euler: expected one of ddpm, ddim, dpmpp2m"),
+        (("--samples", "0"), "--samples 0: expected 1 to 64"),
     ],
 )
 def test_a_bad_port_or_host_is_one_line_and_exit_status_2(arguments, reason):
@@ -114,3 +119,19 @@ def test_default_model_a_taken_port_and_ctrl_c(tmp_path):
                 process.kill()
     assert process.returncode == 0, stderr
     assert "Traceback" not in stderr and "ikdp-viz: stopped" in stderr
+
+
+def test_the_flags_open_the_viewer_on_a_given_target_with_given_settings(tiny_checkpoint):
+    """--target and the sampling flags reproduce a view (for bug reports), in-process."""
+    from viz_helpers import running_app, settle
+
+    import ikdp
+    from ikdp_viz.__main__ import VizConfig, apply_settings
+
+    config = VizConfig(target=(0.5, -1.0), samples=5, sampler="ddim", steps=4, seed=3, refine_steps=2)
+    with running_app(ikdp.load(tiny_checkpoint), solve_now=False, animation_seconds=0.0) as app:
+        apply_settings(app, config)
+        settle(app)
+        request, view = app.solved.request, app.solved.view
+        assert np.allclose(view.target, [0.5, -1.0]) and view.num_samples == 5 and view.num_states == 5
+        assert (request.sampler, request.steps, request.seed, request.refine_steps) == ("ddim", 4, 3, 2)
