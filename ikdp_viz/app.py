@@ -31,6 +31,7 @@ from ikdp_viz.scene_writer import (
     ReplayWhenDrawn,
     SceneWriter,
     ShowError,
+    ShowPrior,
     ShowSolve,
     ShowState,
     TogglePlay,
@@ -200,6 +201,7 @@ class VizApp:
         panel.play_button.on_click(lambda event: self._post(event, TogglePlay()))
         for toggle in (panel.show_trail, panel.show_estimate, panel.highlight):
             toggle.on_update(lambda event: self._post(event, Redraw()))
+        panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
         for handle in (panel.steps, panel.refine_steps):
@@ -215,6 +217,17 @@ class VizApp:
         self.writer.post(message)
         if event.client is None:
             self.writer.flush()
+
+    def draw_prior(self, wait: bool = True) -> np.ndarray:
+        """Draw K poses from the model's training prior and show them; returns their joints (K, N+1, 2)."""
+        with self.session.lock:
+            solver = self.session.solver
+            headings = solver.prior.sample(int(self.panel.samples.value), solver.arm)  # (K, N)
+            joints = solver.arm.forward_kinematics(headings.double()).numpy()  # (K, N+1, 2)
+            self.writer.post(ShowPrior(joints))
+        if wait:
+            self.writer.flush()
+        return joints
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))

@@ -53,6 +53,7 @@ class Panel:
     duration: viser.GuiNumberHandle
     show_trail: viser.GuiCheckboxHandle
     show_estimate: viser.GuiCheckboxHandle
+    prior_button: viser.GuiButtonHandle
     play_on_move: viser.GuiCheckboxHandle
     samples: viser.GuiSliderHandle
     highlight: viser.GuiDropdownHandle
@@ -98,6 +99,10 @@ def build_panel(
         show_estimate = gui.add_checkbox(
             "show x̂0", False, hint="Ghosted in purple: the denoiser's estimate of the final pose at the step shown"
         )
+        prior_button = gui.add_button(
+            "Draw from the prior", icon=viser.Icon.DICE,
+            hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
+        )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
     with gui.add_folder("Sampling"):
         samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
@@ -140,6 +145,6 @@ def build_panel(
         model_markdown = gui.add_markdown(model_text)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
-        play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps, readout_text, plot,
-        checkpoint, model_markdown,
+        prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
+        readout_text, plot, checkpoint, model_markdown,
     )  # fmt: skip

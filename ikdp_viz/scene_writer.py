@@ -50,6 +50,7 @@ TARGET_RED = (220, 25, 25)
 GRID_CELL = (236, 236, 236)  # grid lines every quarter bone length
 GRID_SECTION = (212, 212, 212)  # grid lines every mean bone length
 ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
+PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 
@@ -107,6 +108,11 @@ class PlaceTarget:
 class NewModel:
     solver: ikdp.Solver  # rebuild the scene for this model; solves of any other are dropped
     target: np.ndarray  # (2,) the cross's place in the new workspace
+
+
+@dataclass(frozen=True)
+class ShowPrior:
+    joints: np.ndarray  # (K, N+1, 2) poses drawn from the model's prior, shown until the next solve
 
 
 @dataclass(frozen=True)
@@ -168,7 +174,7 @@ class SceneWriter:
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
         self.trail = self.links = self.joints = self.tips = None
-        self.refined_lines = self.refined_tips = self.estimate_lines = None
+        self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self._static_nodes: list = []
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
@@ -255,6 +261,8 @@ class SceneWriter:
             self._place_target(message)
         elif isinstance(message, NewModel):
             self._new_model(message)
+        elif isinstance(message, ShowPrior):
+            self._show_prior(message.joints)
         elif isinstance(message, ShowError):
             self.error = message.text
             self._write_readouts()
@@ -273,6 +281,9 @@ class SceneWriter:
             return  # a solve of the model that was replaced
         self.animation = None
         self.solved, self.error = solved, None
+        if self.prior_lines is not None:  # the prior's draw was for the solve before
+            self.prior_lines.remove()
+            self.prior_lines = None
         self._recolor()
         self._ensure_arm_nodes()
         self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
@@ -287,6 +298,14 @@ class SceneWriter:
         self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
         if animate:
             self._start(0, last)
+
+    def _show_prior(self, joints: np.ndarray) -> None:
+        if self.prior_lines is not None:
+            self.prior_lines.remove()
+        self.prior_lines = self.server.scene.add_line_segments(
+            "/prior", polyline_segments(joints, z=0.5 * REFINED_LIFT * self.sizes.joint), colors=PRIOR,
+            thickness=2 * LINE_PIXELS, thickness_units="screen",
+        )  # fmt: skip
 
     def _play_from_start(self, *, user: bool) -> None:
         """Play the solve on screen from t = T: on a user's Play, or (if "play on move" is on) after a drag."""
@@ -539,7 +558,16 @@ class SceneWriter:
         self.refined_tips.batched_positions = tips
 
     def _remove_arm_nodes(self) -> None:
-        for name in ("trail", "estimate_lines", "links", "joints", "tips", "refined_lines", "refined_tips"):
+        for name in (
+            "trail",
+            "estimate_lines",
+            "prior_lines",
+            "links",
+            "joints",
+            "tips",
+            "refined_lines",
+            "refined_tips",
+        ):
             handle = getattr(self, name, None)
             if handle is not None:
                 handle.remove()

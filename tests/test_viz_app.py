@@ -179,6 +179,36 @@ def test_refine_draws_the_polished_pose_beside_the_raw_one(app, solver):
     assert not app.refined_lines.visible  # only beside the final pose
 
 
+def test_the_estimate_toggle_ghosts_the_denoisers_x0_of_the_step_shown(app, solver):
+    view = app.solved.view
+    assert view.estimate_joints.shape == (view.num_states - 1, 16, solver.num_links + 1, 2)
+    assert not app.estimate_lines.visible  # off by default
+    app.panel.show_estimate.value = True
+    app.panel.timestep.value = 10
+    state = app.state
+    drawn = app.estimate_lines.points.reshape(16, solver.num_links, 2, 3)[..., :2]
+    assert app.estimate_lines.visible and np.allclose(drawn[:, :, 0], view.estimate_joints[state - 1][:, :-1])
+    # the same solve through the public API: x̂0 of that step, as joint values
+    generator = torch.Generator().manual_seed(int(app.panel.seed.value))
+    out = solver.solve(app.target[None], num_samples=16, generator=generator, return_trajectory=True, return_estimates=True)
+    expected = ikdp.forward_kinematics(out.estimates[state - 1, 0].double(), torch.tensor(solver.lengths).double())
+    assert np.allclose(drawn[:, :, 1], expected.numpy()[:, 1:], atol=1e-4)
+    app.panel.timestep.value = app.panel.timestep.max  # t = T: no estimate yet
+    assert not app.estimate_lines.visible
+    app.panel.show_estimate.value = False
+
+
+def test_drawing_from_the_prior_shows_k_prior_poses_until_the_next_solve(app, solver):
+    joints = app.draw_prior()
+    assert joints.shape == (16, solver.num_links + 1, 2) and np.allclose(joints[:, 0], 0.0)
+    bones = np.linalg.norm(np.diff(joints, axis=1), axis=-1)
+    assert np.allclose(bones, solver.lengths)  # real poses of this arm
+    assert np.allclose(app.writer.prior_lines.points[..., :2].reshape(16, -1, 2, 2)[:, :, 0], joints[:, :-1])
+    app.move_target((0.2, 1.3))
+    settle(app)
+    assert app.writer.prior_lines is None
+
+
 def test_a_fixed_seed_repeats_the_solve_and_new_seed_each_move_changes_it(app):
     drag_gizmo(app, 0.5, 1.5)
     settle(app)
