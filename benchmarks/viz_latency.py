@@ -131,13 +131,14 @@ class Stream:
         self.loop = app.server.get_event_loop()
         self.arrivals: list[float] = []
         self.frames = 0
-        draw = app._draw_state
+        writer = app.writer
+        draw = writer._draw_state
 
         def counting_draw(state: int) -> None:
             self.frames += 1
             draw(state)
 
-        app._draw_state = counting_draw  # count the frames written
+        writer._draw_state = counting_draw  # count the frames written (on the scene writer's thread)
 
     def send(self, point, phase: str) -> None:
         """What viser does with a decoded drag message: set the gizmo's pose, run its callback on the loop."""
@@ -145,8 +146,9 @@ class Stream:
 
         async def deliver():
             self.arrivals.append(time.perf_counter())
-            app.gizmo.position = (point[0], point[1], 0.0)
-            event = viser.TransformControlsEvent(client=None, client_id=None, target=app.gizmo, phase=phase)
+            gizmo = app.gizmo
+            gizmo._impl.position = np.array([point[0], point[1], 0.0])  # as viser's handler does
+            event = viser.TransformControlsEvent(client=None, client_id=None, target=gizmo, phase=phase)
             await app.on_gizmo_update(event)
 
         asyncio.run_coroutine_threadsafe(deliver(), self.loop)

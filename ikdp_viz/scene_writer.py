@@ -516,7 +516,7 @@ class SceneWriter:
         options = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
         link, joint, tip = (
             meshes.link_mesh(self.sizes.link),
-            meshes.sphere_mesh(self.sizes.joint),
+            meshes.sphere_mesh(self.sizes.joint, 1),  # 80 faces: software WebGL pays for every one
             meshes.sphere_mesh(self.sizes.tip, 1),
         )
         lines = dict(thickness_units="screen", visible=False)
