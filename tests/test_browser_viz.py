@@ -217,15 +217,16 @@ def test_opening_a_longer_arm_fits_the_open_tabs_view_to_its_reach(viewer, tiny_
     if longer is None:
         pytest.skip("the shipped ikdp_n8 is not there")
     app = viewer.app
-    (client,) = app.server.get_clients().values()
+    clients = list(app.server.get_clients().values())  # every open tab, this module's page among them
     try:
         assert app.load_checkpoint(longer)
         settle(app)
         expected, _ = camera_fit(app.solver.reach[1])
         deadline = time.monotonic() + TIMEOUT
-        while not np.allclose(client.camera.position, expected, atol=1e-3) and time.monotonic() < deadline:
-            time.sleep(0.1)  # the page reports its camera back
-        assert np.allclose(client.camera.position, expected, atol=1e-3), client.camera.position
+        fitted = lambda: all(np.allclose(client.camera.position, expected, atol=1e-3) for client in clients)  # noqa: E731
+        while not fitted() and time.monotonic() < deadline:
+            time.sleep(0.1)  # the pages report their cameras back
+        assert fitted(), [client.camera.position for client in clients]
         pixels = link_pixels(app, viewer.page, app.solved.view.joints[-1])
         assert len(pixels) and (pixels >= 0).all() and (pixels[:, 0] <= 1280).all() and (pixels[:, 1] <= 800).all()
     finally:

@@ -64,7 +64,7 @@ def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shippe
     }
     with running_app(shipped_solver, solve_now=False, animation_seconds=1.0) as app:
         page, errors = page_errors(browser, app)
-        assert (app.panel.samples.value, app.panel.seed.value, app.panel.sampler.value) == (16, 0, "DDPM")
+        assert (app.panel.samples.value, app.panel.seed.value, app.panel.sampler.value) == (16, 0, "ddpm")
         for name, target in sweep.items():
             app.move_target(target)
             settle(app)
