@@ -25,6 +25,7 @@ from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp_viz import readouts
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel, highlight_options
 from ikdp_viz.scene_writer import (
+    Call,
     NewModel,
     PlaceTarget,
     Redraw,
@@ -202,6 +203,7 @@ class VizApp:
         for toggle in (panel.show_trail, panel.show_estimate, panel.highlight):
             toggle.on_update(lambda event: self._post(event, Redraw()))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
+        panel.export_button.on_click(self._on_export)
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
         for handle in (panel.steps, panel.refine_steps):
@@ -228,6 +230,33 @@ class VizApp:
         if wait:
             self.writer.flush()
         return joints
+
+    def export(self, folder: Path) -> tuple[Path, Path]:
+        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`."""
+        from ikdp_viz.export import write_gif, write_trail_png
+
+        done: list = []
+        self.writer.post(Call(lambda writer: done.append((writer.solved, writer.highlight_index()))))
+        self.writer.flush()
+        solved, highlight = done[0]  # read on the writer's thread: the pair belongs to one solve
+        if solved is None:
+            raise ValueError("export: nothing solved yet")
+        x, y = solved.view.target
+        stem = f"ikdp_{solved.request.sampler}_K{solved.view.num_samples}_seed{solved.request.seed}_{x:+.3f}_{y:+.3f}"
+        seconds = float(self.panel.duration.value) or 4.0
+        gif = write_gif(solved.view, Path(folder) / f"{stem}.gif", highlight, seconds=seconds)
+        png = write_trail_png(solved.view, Path(folder) / f"{stem}_trail.png", highlight)
+        return gif, png
+
+    def _on_export(self, event: viser.GuiEvent) -> None:
+        """Export into a temporary folder and send both files to the tab that asked."""
+        import tempfile
+
+        if event.client is None or self.solved is None:
+            return
+        with tempfile.TemporaryDirectory() as folder:
+            for path in self.export(Path(folder)):
+                event.client.send_file_download(path.name, path.read_bytes())
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))

@@ -65,6 +65,7 @@ class Panel:
     refine_steps: viser.GuiSliderHandle
     readout_text: viser.GuiMarkdownHandle
     plot: viser.GuiUplotHandle
+    export_button: viser.GuiButtonHandle
     checkpoint: viser.GuiDropdownHandle
     model_text: viser.GuiMarkdownHandle
 
@@ -140,11 +141,15 @@ def build_panel(
             legend=viser.uplot.Legend(show=True),
             aspect=1.5,
         )
+        export_button = gui.add_button(
+            "Export GIF + PNG", icon=viser.Icon.DOWNLOAD,
+            hint="The denoising as a GIF and the trail figure as a PNG, downloaded by this tab",
+        )  # fmt: skip
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
-        readout_text, plot, checkpoint, model_markdown,
+        readout_text, plot, export_button, checkpoint, model_markdown,
     )  # fmt: skip

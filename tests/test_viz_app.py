@@ -190,7 +190,9 @@ def test_the_estimate_toggle_ghosts_the_denoisers_x0_of_the_step_shown(app, solv
     assert app.estimate_lines.visible and np.allclose(drawn[:, :, 0], view.estimate_joints[state - 1][:, :-1])
     # the same solve through the public API: x̂0 of that step, as joint values
     generator = torch.Generator().manual_seed(int(app.panel.seed.value))
-    out = solver.solve(app.target[None], num_samples=16, generator=generator, return_trajectory=True, return_estimates=True)
+    out = solver.solve(
+        app.target[None], num_samples=16, generator=generator, return_trajectory=True, return_estimates=True
+    )
     expected = ikdp.forward_kinematics(out.estimates[state - 1, 0].double(), torch.tensor(solver.lengths).double())
     assert np.allclose(drawn[:, :, 1], expected.numpy()[:, 1:], atol=1e-4)
     app.panel.timestep.value = app.panel.timestep.max  # t = T: no estimate yet
@@ -207,6 +209,26 @@ def test_drawing_from_the_prior_shows_k_prior_poses_until_the_next_solve(app, so
     app.move_target((0.2, 1.3))
     settle(app)
     assert app.writer.prior_lines is None
+
+
+def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_path):
+    import imageio.v2 as imageio
+    from viz_helpers import read_png
+
+    app.panel.duration.value = 2.0
+    gif, png = app.export(tmp_path)
+    view = app.solved.view
+    frames = imageio.mimread(gif)
+    assert gif.suffix == ".gif" and len(frames) == min(41, view.num_states) and frames[0].shape[:2] == (480, 480)
+    assert not np.array_equal(frames[0], frames[-1])  # the arms move from noise to the final pose
+    image = read_png(png.read_bytes())
+    assert image.shape == (800, 800, 3) and (image.min(axis=-1) < 100).any()  # dark final poses drawn
+    red = (image[..., 0] > 180) & (image[..., 1] < 80) & (image[..., 2] < 80)
+    rows, cols = np.nonzero(red)
+    reach = float(np.sum(view.lengths))
+    centre = (np.array([cols.mean(), rows.mean()]) - 400) / 400 * 1.05 * reach * np.array([1, -1])
+    assert np.allclose(centre, view.target, atol=0.1 * reach)  # the cross where the target is
+    assert f"seed{app.solved.request.seed}" in gif.name and png.name.endswith("_trail.png")
 
 
 def test_a_fixed_seed_repeats_the_solve_and_new_seed_each_move_changes_it(app):
