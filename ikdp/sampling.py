@@ -5,7 +5,9 @@ record, call back. What makes it fast is what it does not do per step:
 - the denoiser's condition (timestep and target) does not depend on the noisy
   sample, so every step's condition is computed in one batched call per solve;
 - the states live in one preallocated buffer (the trajectory itself when it is
-  asked for, else two slots used in turn), and samplers write into it in place.
+  asked for, else two slots used in turn), and samplers write into it in place;
+- a denoiser that offers a `workspace(rows, like)` (the FiLM one does) computes
+  into buffers allocated once per solve, with the same ops as its plain path.
 
 A `callback(step_index, timestep, state, estimate)` sees every step as joint
 values (B, K, J) and stops the run by returning True.
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import torch
 
@@ -83,6 +86,9 @@ def run_reverse_diffusion(
     estimates = torch.empty((steps, rows, dim), **like) if return_estimates else None
     torch.randn((rows, dim), generator=generator, out=states[0])  # x_T ~ N(0, I)
     x = states[0]
+    make_workspace = getattr(denoiser, "workspace", None)
+    workspace = make_workspace(rows, x) if make_workspace is not None else None
+    denoise = denoiser.denoise if workspace is None else partial(denoiser.denoise, workspace=workspace)
     sampler.reset()
     unflatten = (batch, num_samples)
     steps_run, stopped = 0, False
@@ -93,7 +99,7 @@ def run_reverse_diffusion(
             condition = denoiser.condition(t_all[index].expand(batch), targets)
             if batch > 1:
                 condition = condition.repeat_interleave(num_samples, dim=0)
-        output = denoiser.denoise(x, row_targets, condition)
+        output = denoise(x, row_targets, condition)
         clean = schedule.predict_clean(output, t, x, prediction)
         if project:
             clean = representation.project(clean)
