@@ -172,7 +172,7 @@ class ChainArm:
     def from_urdf(
         cls, urdf_path: str | Path, ee_link: str, *, target: str = "pose", base_link: str | None = None, package_dirs=()
     ) -> ChainArm:
-        """Read the chain from `base_link` (default: the root link) to `ee_link` in a URDF file."""
+        """Read the chain from `base_link` (default: the root of `ee_link`'s tree) to `ee_link` in a URDF file."""
         chain = read_chain(urdf_path, ee_link, base_link=base_link, package_dirs=package_dirs)
         return cls.from_description(chain, target=target)
 

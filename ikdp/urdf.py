@@ -87,7 +87,7 @@ class ChainDescription:
 def read_chain(
     urdf_path: str | Path, ee_link: str, *, base_link: str | None = None, package_dirs=()
 ) -> ChainDescription:
-    """Read the chain from `base_link` (default: the URDF's root link) to `ee_link` from a URDF file."""
+    """Read the chain from `base_link` (default: the root of `ee_link`'s tree) to `ee_link` from a URDF file."""
     path = Path(urdf_path)
     if not path.is_file():
         raise ValueError(f"urdf_path: no file at {str(path)!r}")
@@ -128,12 +128,7 @@ def parse_chain(
 
     if ee_link not in link_elements:
         raise ValueError(f"ee_link: no link {ee_link!r} in the URDF (it has {len(link_elements)} links)")
-    if base_link is None:
-        roots = [name for name in link_elements if name not in joint_to_child]
-        if len(roots) != 1:
-            raise ValueError(f"base_link: the URDF has {len(roots)} root links {roots[:4]}, name one")
-        base_link = roots[0]
-    elif base_link not in link_elements:
+    if base_link is not None and base_link not in link_elements:
         raise ValueError(f"base_link: no link {base_link!r} in the URDF")
 
     path_joints = []  # walked from the end effector up, reversed below
@@ -141,6 +136,9 @@ def parse_chain(
     while link != base_link:
         element = joint_to_child.get(link)
         if element is None:
+            if base_link is None:  # the top of the end effector's tree is the base
+                base_link = link
+                break
             raise ValueError(f"base_link: {base_link!r} is not an ancestor of ee_link {ee_link!r}: no chain joins them")
         path_joints.append(element)
         link = _required_attribute(_required_child(element, "parent", element.get("name")), "link", "joint parent")
