@@ -17,13 +17,16 @@ from ikdp.urdf import parse_chain
 MIXED_URDF = """<robot name="mixed">
   <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/><link name="tool"/>
   <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-    <origin xyz="0 0 0.3" rpy="0 0 0.4"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    <origin xyz="0 0 0.3" rpy="0 0 0.4"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
   <joint name="j2" type="prismatic"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.1 0 0.2" rpy="0.3 -0.2 0.1"/><axis xyz="1 1 0"/><limit lower="-0.1" upper="0.2" effort="1" velocity="1"/></joint>
+    <origin xyz="0.1 0 0.2" rpy="0.3 -0.2 0.1"/><axis xyz="1 1 0"/>
+    <limit lower="-0.1" upper="0.2" effort="1" velocity="1"/></joint>
   <joint name="bend" type="fixed"><parent link="l2"/><child link="l3"/><origin xyz="0 0.25 0" rpy="1.2 0 -0.5"/></joint>
   <joint name="j3" type="continuous"><parent link="l3"/><child link="l4"/>
     <origin xyz="0.2 0 0.1" rpy="0 0.7 0"/><axis xyz="0.3 -0.4 0.5"/></joint>
-  <joint name="tool_joint" type="fixed"><parent link="l4"/><child link="tool"/><origin xyz="0 0 0.15" rpy="0.2 0.3 0.4"/></joint>
+  <joint name="tool_joint" type="fixed"><parent link="l4"/><child link="tool"/>
+    <origin xyz="0 0 0.15" rpy="0.2 0.3 0.4"/></joint>
 </robot>"""
 
 
