@@ -210,6 +210,13 @@ class ChainArm:
             raise ValueError(f"config: expected kind 'chain', got {config.get('kind')!r}")
         return cls(**{key: value for key, value in config.items() if key != "kind"})
 
+    def chain_description(self) -> ChainDescription | None:
+        """The parsed URDF (links, meshes) for drawing: kept from construction, else re-read from
+        `urdf_path` if that file exists here (an arm rebuilt from a checkpoint), else None."""
+        if self.description is None and self.urdf_path is not None and Path(self.urdf_path).is_file():
+            self.description = read_chain(self.urdf_path, self.ee_link, base_link=self.base_link)
+        return self.description
+
     def __repr__(self) -> str:
         return f"ChainArm({self.base_link!r} -> {self.ee_link!r}, {self.num_joints} joints, target={self.target!r})"
 

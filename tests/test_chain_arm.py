@@ -258,8 +258,11 @@ def test_config_round_trip_without_the_urdf(panda):
     torch.testing.assert_close(rebuilt.end_effector(joints), panda.end_effector(joints), atol=0, rtol=0)
     torch.testing.assert_close(rebuilt.link_poses(joints), panda.link_poses(joints), atol=0, rtol=0)
     assert rebuilt.to_config() == config
+    assert rebuilt.chain_description() is None  # no file to read meshes from
     with pytest.raises(ValueError, match="kind"):
         ChainArm.from_config({**config, "kind": "planar"})
+    with_file = ChainArm.from_config(panda.to_config())
+    assert [link.name for link in with_file.chain_description().links] == panda.link_names
 
 
 def test_robot_names_load(panda):
@@ -272,24 +275,26 @@ def test_robot_names_load(panda):
         load_robot("pr2")
 
 
-@pytest.mark.parametrize("name", ["panda", "mixed"])
+@pytest.mark.parametrize("name", ["panda", "mixed", "spatial"])
 def test_damped_least_squares_converges_from_a_nearby_start(name, panda):
-    arm = panda if name == "panda" else mixed_arm()
+    arm = {"panda": panda, "mixed": mixed_arm(), "spatial": spatial_arm(3)}[name]
     generator = torch.Generator().manual_seed(6)
     limits = arm.joint_limits.double()
     middle, half = limits.mean(1), (limits[:, 1] - limits[:, 0]) / 2
     solutions = middle + 0.6 * half * (2 * torch.rand(16, arm.num_joints, generator=generator, dtype=torch.float64) - 1)
-    targets = arm.end_effector_pose(solutions)
+    targets = arm.end_effector(solutions)  # (B, 7) poses, or (B, 3) positions for the spatial arm
+    rows = 6 if arm.target == "pose" else 3
     joints = arm.normalize_joints(
         solutions + 0.15 * torch.randn(solutions.shape, generator=generator, dtype=torch.float64)
     )
     damping = 1e-3
     for _ in range(30):
-        jacobian = arm.jacobian(joints)  # (B, 6, J)
-        error = arm.task_error(joints, targets)  # (B, 6)
-        system = jacobian @ jacobian.transpose(-1, -2) + damping**2 * torch.eye(6, dtype=torch.float64)
+        jacobian = arm.jacobian(joints)  # (B, rows, J)
+        error = arm.task_error(joints, targets)  # (B, rows)
+        system = jacobian @ jacobian.transpose(-1, -2) + damping**2 * torch.eye(rows, dtype=torch.float64)
         step = jacobian.transpose(-1, -2) @ torch.linalg.solve(system, error.unsqueeze(-1))
         joints = arm.normalize_joints(joints + step.squeeze(-1))
     assert arm.position_error(joints, targets).max() < 1e-6
-    assert arm.rotation_error(joints, targets).max() < 1e-6
+    if arm.target == "pose":
+        assert arm.rotation_error(joints, targets).max() < 1e-6
     assert arm.limit_violations(joints).sum() == 0
