@@ -298,3 +298,12 @@ def test_damped_least_squares_converges_from_a_nearby_start(name, panda):
     if arm.target == "pose":
         assert arm.rotation_error(joints, targets).max() < 1e-6
     assert arm.limit_violations(joints).sum() == 0
+
+
+def test_chain_arm_offers_everything_planar_arm_does(panda):
+    from ikdp.arm import PlanarArm
+
+    planar_only = {"lengths", "lengths_like"}  # bone lengths are the planar arm's own description
+    shared = {name for name in dir(PlanarArm) if not name.startswith("_")} - planar_only
+    assert shared <= {name for name in dir(panda) if not name.startswith("_")}
+    assert panda.kind == "chain" and panda.target_dim == 7 and panda.position_dim == 3
