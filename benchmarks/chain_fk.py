@@ -13,9 +13,11 @@ benchmarks/results/chain_fk.json. pytorch_kinematics is the reference here, not 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import statistics
 import time
+from importlib.metadata import version
 from pathlib import Path
 
 import torch
@@ -71,8 +73,9 @@ def main() -> None:
                 "dtype": "float32",
                 "max_position_difference_m": float(difference.max()),
                 "torch": str(torch.__version__),
-                "pytorch_kinematics": pk.__version__ if hasattr(pk, "__version__") else "unknown",
+                "pytorch_kinematics": version("pytorch_kinematics"),
                 "machine": platform.machine(),
+                "load_average_1min": os.getloadavg()[0],  # the machine is shared: a busy one slows every row
                 "date": time.strftime("%Y-%m-%d"),
                 "rows": rows,
             },
