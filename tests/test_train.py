@@ -1,5 +1,7 @@
+import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -206,3 +208,66 @@ def test_describe_rebuilds_the_training_command(tiny_checkpoint):
     for name in ("joints", "steps", "batch", "hidden", "blocks", "timesteps", "threads", "output", "log_dir"):
         assert getattr(rebuilt, name) == train[name], name
     assert str(tiny_checkpoint) in describe([str(tiny_checkpoint)])
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _distributed_worker(rank: int, world_size: int, port: int, folder: str) -> None:
+    """One of the processes torchrun would start: its environment, then the real training entry point."""
+    os.environ.update(
+        MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), LOCAL_RANK=str(rank), WORLD_SIZE=str(world_size)
+    )
+    records = []
+
+    def watch(step, model, headings):
+        weights = torch.cat([parameter.detach().flatten() for parameter in model.parameters()])
+        records.append({"step": step, "weights": weights.clone(), "batch": headings.clone()})
+
+    config = TrainConfig(
+        joints=2, steps=4, batch=16, hidden=16, blocks=1, timesteps=10, eval_targets=5, threads=1, save_every=100
+    )
+    train(replace(config, output=f"{folder}/model.pt"), on_step=watch)
+    torch.save(records, f"{folder}/rank{rank}.pt")
+
+
+@pytest.mark.slow
+def test_two_processes_average_their_gradients(tmp_path, monkeypatch):
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    torch.multiprocessing.spawn(_distributed_worker, args=(2, _free_port(), str(tmp_path)), nprocs=2, join=True)
+    first, second = (torch.load(tmp_path / f"rank{rank}.pt", weights_only=True) for rank in (0, 1))
+    assert [record["step"] for record in first] == [record["step"] for record in second] == [1, 2, 3, 4]
+    for a, b in zip(first, second, strict=True):
+        assert not torch.equal(a["batch"], b["batch"])  # each process drew its own data
+        torch.testing.assert_close(a["weights"], b["weights"], rtol=0, atol=0)  # yet they took the same step
+    assert not torch.equal(first[0]["weights"], first[-1]["weights"])  # and the steps did move the weights
+    payload = read_checkpoint(tmp_path / "model.pt")
+    assert payload["train"]["world_size"] == 2 and payload["train"]["step"] == 4
+    assert len(payload["data_generators"]) == 2 and not torch.equal(*payload["data_generators"])
+
+
+@pytest.mark.slow
+def test_torchrun_trains_and_resumes(tmp_path):
+    output = tmp_path / "model.pt"
+    torchrun = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", "-m", "ikdp.train"]
+    options = ["--joints", "2", "--batch", "16", "--hidden", "16", "--blocks", "1", "--timesteps", "10"]
+    options += ["--eval-targets", "5", "--threads", "1", "--save-every", "3", "--output", str(output)]
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
+    first = subprocess.run([*torchrun, *options, "--steps", "6"], capture_output=True, text=True, env=environment)
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert first.stderr.count("TensorBoard logs:") == 1  # rank 0 alone reports
+    resumed = subprocess.run(
+        [*torchrun, "--output", str(output), "--resume", "--steps", "9"],
+        capture_output=True,
+        text=True,
+        env=environment,
+    )
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert "resuming" in resumed.stderr and "new data streams" not in resumed.stdout
+    payload = read_checkpoint(output)
+    assert payload["train"]["step"] == 9 and payload["train"]["world_size"] == 2
+    assert payload["train"]["hidden"] == 16  # read back from the checkpoint, not given again
+    assert ikdp.load(output).num_links == 2
