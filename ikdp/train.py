@@ -31,9 +31,9 @@ import torch
 import torch.distributed as dist
 from tqdm import tqdm
 
+from ikdp.arm import PlanarArm
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.denoisers import DenoiserConfig
-from ikdp.kinematics import tip_position
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior, make_prior
 from ikdp.schedule import ScheduleConfig
@@ -53,6 +53,8 @@ class TrainConfig:
     prediction: Literal["sample", "epsilon"] = "sample"  # the denoiser predicts the clean sample (x_0) or the noise
     hidden: int = 128  # film: MLP width
     blocks: int = 3  # film: residual blocks
+    kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
+    ema: float = 0.0  # decay of an exponential moving average of the weights, saved for solving (0: none)
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
     tip_loss_weight: float = 100.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
     snr_gamma: float = 5.0  # Min-SNR loss weighting min(SNR, gamma)/gamma; 0 = uniform over t, the paper's
@@ -82,7 +84,9 @@ def build_model(config: TrainConfig) -> IKDiffusion:
         representation=config.representation,
         prediction=config.prediction,
         schedule=ScheduleConfig(timesteps=config.timesteps, kind=config.schedule),
-        denoiser=DenoiserConfig(kind=config.denoiser, hidden=config.hidden, blocks=config.blocks),
+        denoiser=DenoiserConfig(
+            kind=config.denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
+        ),
     )
     return IKDiffusion(model_config)
 
@@ -91,12 +95,12 @@ def build_model(config: TrainConfig) -> IKDiffusion:
 def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: torch.device) -> dict[str, float]:
     """Tip error of the raw DDPM sampler, K=1, on `count` targets drawn from the prior (fixed seed)."""
     generator = torch.Generator().manual_seed(12345)
-    headings = prior.sample(count, model.config.num_links, generator=generator)
-    targets = tip_position(headings, model.lengths.cpu()).to(device)
+    arm = model.arm
+    targets = arm.end_effector(prior.sample(count, arm, generator=generator))
     model.eval()
-    poses = model.sample(targets, num_samples=1, generator=torch.Generator(device).manual_seed(1)).headings[:, 0]
+    poses = model.sample(targets.to(device), generator=torch.Generator(device).manual_seed(1)).headings[:, 0]
     model.train()
-    error = (tip_position(poses, model.lengths) - targets).norm(dim=-1).cpu()
+    error = arm.tip_error(poses.cpu(), targets)
     return {
         "eval_targets": count,
         "tip_error_median": float(error.median()),
@@ -192,9 +196,11 @@ class TrainingLoss(torch.nn.Module):
         )
 
 
-def draw_batch(prior: PosePrior, config: TrainConfig, generator: torch.Generator, device: torch.device) -> torch.Tensor:
+def draw_batch(
+    prior: PosePrior, arm: PlanarArm, batch: int, generator: torch.Generator, device: torch.device
+) -> torch.Tensor:
     """One batch of ground-truth poses from the prior: (batch, N) absolute headings."""
-    return prior.sample(config.batch, config.joints, generator=generator).to(device)
+    return prior.sample(batch, arm, generator=generator).to(device)
 
 
 def training_step(
@@ -255,11 +261,21 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     step, seconds_before = 0, 0.0
     if processes.is_main:
         remove_stale_temporaries(output)  # a save killed mid-write (SIGKILL) left its temp file
+    # the averaged weights are the ones a solver loads; the raw ones continue training on --resume
+    averaged = (
+        torch.optim.swa_utils.AveragedModel(model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(config.ema))
+        if config.ema > 0
+        else None
+    )
 
     if config.resume and output.exists():
         payload = read_checkpoint(output)
         resumed = model_from_checkpoint(payload, str(output))
         model.load_state_dict(resumed.state_dict())
+        if averaged is not None:
+            averaged.module.load_state_dict(resumed.state_dict())
+            averaged.n_averaged.fill_(int(payload["train"]["step"]))
+            model.load_state_dict(payload["raw_state_dict"])
         optimizer.load_state_dict(payload["optimizer"])
         scheduler.load_state_dict(payload["scheduler"])
         step = int(payload["train"]["step"])
@@ -291,7 +307,8 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
 
     def save(final: bool, data_states: list[torch.Tensor] | None) -> None:
         nonlocal metrics
-        metrics = measure_accuracy(model, prior, config.eval_targets, device) if config.eval_targets else {}
+        solving_model = averaged.module if averaged is not None else model
+        metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
         metrics["step"] = step
         train_record = {**asdict(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
         train_record["finished"] = final
@@ -303,7 +320,8 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
             "prior": prior.to_config(),
             "train": train_record,
             "metrics": metrics,
-            "state_dict": model.state_dict(),
+            "state_dict": solving_model.state_dict(),  # the averaged weights when --ema: what a solver loads
+            **({"raw_state_dict": model.state_dict()} if averaged is not None else {}),
             "optimizer": optimizer.state_dict(),
             "scheduler": scheduler.state_dict(),
             "data_generator": data_generator.get_state(),
@@ -320,8 +338,10 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     model.train()
     try:
         while step < config.steps:
-            headings = draw_batch(prior, config, data_generator, device)
+            headings = draw_batch(prior, model.arm, config.batch, data_generator, device)
             losses = training_step(loss, headings, data_generator, optimizer, scheduler)
+            if averaged is not None:
+                averaged.update_parameters(model)
             step += 1
             if on_step is not None:
                 on_step(step, model, headings)

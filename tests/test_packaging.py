@@ -69,8 +69,8 @@ def test_solving_works_without_the_extras():
         + textwrap.dedent(
             """
             import torch, ikdp
-            from ikdp.shipped import DEFAULT_MODEL, shipped_checkpoint
-            solver = ikdp.load(shipped_checkpoint(DEFAULT_MODEL))
+            from ikdp.shipped import DEFAULT_MODEL
+            solver = ikdp.load(DEFAULT_MODEL)  # a shipped model, by name
             out = solver.solve([[1.5, 2.0]], num_samples=2, refine_steps=5, generator=torch.Generator().manual_seed(0))
             print(float(out.tip_error.max()))
             """

@@ -9,6 +9,7 @@ import math
 
 import torch
 
+from ikdp.arm import PlanarArm
 from ikdp.kinematics import tip_position
 from ikdp.refine import damped_least_squares
 
@@ -26,6 +27,6 @@ def solve_dls_restarts(
     batch, num_links = targets.shape[0], lengths.shape[0]
     starts = (torch.rand(batch, restarts, num_links, generator=generator) * 2 - 1) * math.pi
     goals = targets[:, None].expand(-1, restarts, -1)
-    headings = damped_least_squares(starts, goals, lengths, steps=iterations, damping=damping)
+    headings = damped_least_squares(PlanarArm(lengths.tolist()), starts, goals, steps=iterations, damping=damping)
     error = (tip_position(headings.double(), lengths.double()) - goals.double()).norm(dim=-1).float()
     return headings, error

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import torch
 
+from ikdp.arm import PlanarArm
 from ikdp.baselines.ccd import solve_ccd
 from ikdp.baselines.closed_form import solve_two_link
 from ikdp.baselines.dls_restarts import solve_dls_restarts
@@ -57,7 +58,7 @@ def dls_from_prior(prior: PosePrior, lengths: torch.Tensor, iterations: int = DL
         starts = prior.sample(targets.shape[0] * num_samples, lengths.shape[0], generator=generator)
         starts = starts.unflatten(0, (targets.shape[0], num_samples))
         goals = targets[:, None].expand(-1, num_samples, -1)
-        headings = damped_least_squares(starts, goals, lengths, steps=iterations)
+        headings = damped_least_squares(PlanarArm(lengths.tolist()), starts, goals, steps=iterations)
         error = (tip_position(headings.double(), lengths.double()) - goals.double()).norm(dim=-1).float()
         return headings, error
 

@@ -12,6 +12,7 @@ import math
 
 import torch
 
+from ikdp.arm import PlanarArm
 from ikdp.kinematics import tip_position
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
@@ -71,4 +72,4 @@ def rejection_reference(
         return torch.empty(0, count, num_links), complete, draws
     reference = torch.stack([torch.cat(kept[row])[:count] for row in torch.nonzero(complete).flatten().tolist()])
     goals = targets[complete][:, None].expand(-1, count, -1)
-    return damped_least_squares(reference, goals, lengths, steps=polish_steps), complete, draws
+    return damped_least_squares(PlanarArm(lengths.tolist()), reference, goals, steps=polish_steps), complete, draws
