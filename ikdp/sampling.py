@@ -69,15 +69,21 @@ def run_reverse_diffusion(
     return_trajectory: bool = False,
     return_estimates: bool = False,
     callback: StepCallback | None = None,
+    conditions: torch.Tensor | None = None,
 ) -> Trajectory:
-    """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J)."""
+    """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J).
+
+    `conditions`: step_conditions() for these targets, when the caller computed them already
+    (ikdp.cuda_graph does, outside the captured graph: they need a host-to-device copy).
+    """
     batch = targets.shape[0]
     rows = batch * num_samples  # M: the K samples of a target are consecutive rows
     steps = sampler.num_steps
     dim = representation.dim
     row_targets = targets.repeat_interleave(num_samples, dim=0)  # (M, C)
-    conditions = step_conditions(denoiser, sampler.timesteps, targets, num_samples)
-    t_all = torch.tensor(sampler.timesteps, device=targets.device)
+    if conditions is None:
+        conditions = step_conditions(denoiser, sampler.timesteps, targets, num_samples)
+    t_all = torch.tensor(sampler.timesteps, device=targets.device) if conditions is None else None
     project = not (prediction == "sample" and getattr(denoiser, "output_on_manifold", False))
 
     # states: the whole trajectory when asked for, else two slots used in turn
