@@ -44,12 +44,16 @@ from ikdp.solver import model_from_checkpoint
 class TrainConfig:
     """Train an IKDP conditional diffusion model for a planar N-link arm."""
 
-    joints: int = 4  # number of links N
+    joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
+    robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, spatial<N> (ikdp.robots)
+    urdf: str = ""  # or any serial chain from a URDF file (with --ee-link)
+    ee_link: str = ""  # the end-effector link of --urdf (--robot panda uses panda_hand)
+    target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
     lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
     timesteps: int = 80  # diffusion steps T
     schedule: Literal["linear", "cosine"] = "linear"  # beta schedule
-    denoiser: Literal["film", "paper"] = "film"  # film (ours) or paper (the paper's transformer)
-    representation: Literal["cossin", "angle"] = "cossin"  # cossin (wrap-free) or angle (the paper's raw theta)
+    denoiser: Literal["film", "mlp", "paper"] = "film"  # film (ours; chain_film on a robot), mlp (plain), paper
+    representation: Literal["cossin", "angle"] = "cossin"  # cossin or angle (paper's theta); robots: joint limits
     prediction: Literal["sample", "epsilon"] = "sample"  # the denoiser predicts the clean sample (x_0) or the noise
     hidden: int = 128  # film: MLP width
     blocks: int = 3  # film: residual blocks
@@ -75,18 +79,39 @@ class TrainConfig:
 RECORD_ONLY = ("step", "seconds", "finished", "torch_version", "threads", "world_size")  # train-record extras
 
 
+def build_chain_arm(config: TrainConfig):
+    """The robot a config names (--robot or --urdf with --ee-link), or None for the planar arm."""
+    if config.robot and config.urdf:
+        raise ValueError("robot: give --robot NAME or --urdf PATH, not both")
+    if config.robot:
+        from ikdp.robots import load_robot
+
+        return load_robot(config.robot, target=config.target)
+    if config.urdf:
+        if not config.ee_link:
+            raise ValueError("ee_link: --urdf needs --ee-link NAME, the end-effector link")
+        from ikdp.chain_arm import ChainArm
+
+        return ChainArm.from_urdf(config.urdf, config.ee_link, target=config.target)
+    return None
+
+
 def build_model(config: TrainConfig) -> IKDiffusion:
+    chain = build_chain_arm(config)
     lengths = config.lengths or (1.0,) * config.joints
-    if len(lengths) != config.joints:
+    if chain is None and len(lengths) != config.joints:
         raise ValueError(f"lengths: got {len(lengths)} bone lengths for {config.joints} joints")
+    # a robot's joints have limits: they are diffused scaled to [-1, 1], and film means its spatial form
+    denoiser = "chain_film" if chain is not None and config.denoiser == "film" else config.denoiser
     model_config = ModelConfig(
         lengths=tuple(float(length) for length in lengths),
-        representation=config.representation,
+        representation="limits" if chain is not None else config.representation,
         prediction=config.prediction,
         schedule=ScheduleConfig(timesteps=config.timesteps, kind=config.schedule),
         denoiser=DenoiserConfig(
-            kind=config.denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
+            kind=denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
         ),
+        arm=chain.to_config() if chain is not None else None,
     )
     return IKDiffusion(model_config)
 
@@ -101,13 +126,21 @@ def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: t
     poses = model.sample(targets.to(device), generator=torch.Generator(device).manual_seed(1)).headings[:, 0]
     model.train()
     error = arm.tip_error(poses.cpu(), targets)
-    return {
+    metrics = {
         "eval_targets": count,
         "tip_error_median": float(error.median()),
         "tip_error_mean": float(error.mean()),
         "tip_error_p95": float(error.quantile(0.95)),
         "sampler": "ddpm raw, K=1",
     }
+    if arm.target_dim == 7:  # pose targets: the rotation error too, radians
+        rotation = arm.rotation_error(poses.cpu(), targets)
+        metrics.update(rotation_error_median=float(rotation.median()), rotation_error_mean=float(rotation.mean()))
+    if arm.kind == "chain":  # joints outside their limits, summed over the targets
+        metrics["limit_violations"] = (
+            int(arm.limit_violations(poses.cpu()).sum()) if hasattr(arm, "limit_violations") else 0
+        )
+    return metrics
 
 
 def validate(config: TrainConfig) -> None:
@@ -254,7 +287,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     output = Path(config.output)
     torch.manual_seed(config.seed)  # the same initial weights in every process
     model = build_model(config).to(device)
-    prior = make_prior(config.prior, config.joints)
+    prior = make_prior(config.prior, model.arm.num_joints)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=0.0)
     scheduler = warmup_cosine(optimizer, config)
     data_generator = torch.Generator().manual_seed(config.seed + processes.rank)

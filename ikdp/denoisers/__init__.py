@@ -4,15 +4,24 @@ from __future__ import annotations
 
 from torch import nn
 
+from ikdp.denoisers.chain_film import ChainFiLMDenoiser
 from ikdp.denoisers.config import DENOISER_KINDS, DenoiserConfig
 from ikdp.denoisers.film import FiLMDenoiser
 from ikdp.denoisers.mlp import MLPDenoiser
 from ikdp.denoisers.paper import PaperDenoiser
 from ikdp.representation import AngleRepresentation
 
-__all__ = ["DENOISER_KINDS", "DenoiserConfig", "FiLMDenoiser", "MLPDenoiser", "PaperDenoiser", "build_denoiser"]
+__all__ = [
+    "DENOISER_KINDS",
+    "ChainFiLMDenoiser",
+    "DenoiserConfig",
+    "FiLMDenoiser",
+    "MLPDenoiser",
+    "PaperDenoiser",
+    "build_denoiser",
+]
 
-_CLASSES = {"film": FiLMDenoiser, "mlp": MLPDenoiser, "paper": PaperDenoiser}
+_CLASSES = {"film": FiLMDenoiser, "chain_film": ChainFiLMDenoiser, "mlp": MLPDenoiser, "paper": PaperDenoiser}
 
 
 def build_denoiser(config: DenoiserConfig, representation: AngleRepresentation, arm) -> nn.Module:
