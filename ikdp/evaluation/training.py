@@ -179,8 +179,22 @@ def _run_quietly(job: Job) -> Path:
 
 
 def _single_threaded_worker() -> None:
-    os.environ["OMP_NUM_THREADS"] = "1"
     torch.set_num_threads(1)
+
+
+@contextlib.contextmanager
+def _environment(**values: str):
+    """Set environment variables for the processes started inside, then put them back."""
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 def train_missing(jobs: list[Job], *, workers: int) -> list[Path]:
@@ -200,7 +214,11 @@ def train_missing(jobs: list[Job], *, workers: int) -> list[Path]:
         return [job.output for job in todo]
     # spawn, not fork: a forked child inherits the parent's OpenMP state and can hang in its first parallel region
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker) as pool:
+    # OpenMP reads OMP_NUM_THREADS when torch loads in a worker, before any initializer could set it
+    with (
+        _environment(OMP_NUM_THREADS="1"),
+        ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker) as pool,
+    ):
         futures = [pool.submit(_run_quietly, job) for job in todo]
         for future in tqdm(futures, desc=f"training ({workers} processes)", leave=False):
             future.result()  # a failed job raises here; its log is at <output>.log
