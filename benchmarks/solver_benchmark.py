@@ -37,7 +37,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 import os
 import platform
 import statistics
@@ -54,7 +53,7 @@ import torch
 import ikdp
 from benchmarks.pk_chain import PkSettings
 from ikdp._cli import parse_into
-from ikdp.arm import PlanarArm
+from ikdp.arm import PlanarArm, uniform_angles
 from ikdp.baselines.random_starts import dls_polish, solve_from_random_starts
 from ikdp.evaluation.machine import cpu_model
 
@@ -289,9 +288,7 @@ def run_pytorch_kinematics(targets: torch.Tensor, lengths, config: BenchmarkConf
         return {"skipped": note}
     settings = PkSettings()
     # its default: R uniform starts within the joint range, shared by every target; drawn here so the seed is ours
-    retry_configs = (
-        torch.rand(config.batch_samples, len(lengths), generator=seeded(config.seed + 3)) * 2 - 1
-    ) * math.pi
+    retry_configs = uniform_angles((config.batch_samples, len(lengths)), generator=seeded(config.seed + 3))
     request = {
         "targets": targets,
         "lengths": list(lengths),
@@ -309,7 +306,7 @@ def run_pytorch_kinematics(targets: torch.Tensor, lengths, config: BenchmarkConf
         )
         result = torch.load(result_path, weights_only=True)
     headings = torch.cumsum(result["joint_angles"].double(), dim=-1)  # (B, R, N) relative -> absolute
-    tip_error = (ikdp.tip_position(headings, torch.tensor(lengths).double()) - targets[:, None].double()).norm(dim=-1)
+    tip_error = PlanarArm(lengths).tip_error(headings, targets[:, None])
     return timing_summary(result["seconds"], len(targets)) | {
         "best_error": error_summary(tip_error.min(dim=1).values, sum(lengths)),
         "share_converged_by_its_own_check": result["converged_any"].double().mean().item(),
