@@ -56,6 +56,8 @@ class PlanarArm:
 
     kind = "planar"
     target_dim = 2  # a target is a point (x, y) for the tip
+    position_dim = 2  # the leading target entries that are a position
+    condition_dim = 2  # the size of target_features: what a denoiser is conditioned on
     joint_limits = None  # headings live on the circle: no limits, poses wrap
 
     def __init__(self, lengths):
@@ -125,6 +127,10 @@ class PlanarArm:
         """
         tip = tip_position(headings.double(), self._lengths64.to(headings.device))
         return (tip - targets.double()).norm(dim=-1).float()
+
+    def target_features(self, targets: torch.Tensor) -> torch.Tensor:
+        """What a denoiser is conditioned on: the target in units of the reach, (..., 2)."""
+        return targets / self.span
 
     def normalize_joints(self, headings: torch.Tensor) -> torch.Tensor:
         """Put poses back in their canonical range after a step: headings wrap into (-pi, pi]."""

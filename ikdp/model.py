@@ -1,7 +1,8 @@
 """The conditional diffusion model of IK: an arm, a representation, a schedule and a denoiser.
 
-Two verbs, as in diffusion_policy: `compute_loss(headings)` for training
-(paper Algorithm 1) and `sample(targets)` for solving (Algorithm 2, or DDIM).
+Two verbs, as in diffusion_policy: `compute_loss(joints)` for training (paper
+Algorithm 1) and `sample(targets)` for solving (Algorithm 2, or any sampler of
+the registry in ikdp/samplers.py).
 """
 
 from __future__ import annotations
@@ -11,30 +12,35 @@ from dataclasses import asdict, dataclass, field
 import torch
 from torch import nn
 
+from ikdp.arm import PlanarArm, arm_from_config
 from ikdp.denoisers import DenoiserConfig, build_denoiser
-from ikdp.kinematics import tip_position
 from ikdp.representation import AngleRepresentation
-from ikdp.sampling import Trajectory, run_reverse_diffusion
+from ikdp.samplers import Sampler, make_sampler
+from ikdp.sampling import StepCallback, Trajectory, run_reverse_diffusion
 from ikdp.schedule import PREDICTION_KINDS, DiffusionSchedule, ScheduleConfig
 
 
 @dataclass(frozen=True)
 class ModelConfig:
-    lengths: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # bone lengths; their count is the number of links N
-    representation: str = "cossin"  # what is diffused: angle (the paper's theta/pi) or cossin (wrap-free)
+    lengths: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # planar arm: bone lengths (their count is N); see `arm`
+    representation: str = "cossin"  # what is diffused: angle (the paper's theta/pi), cossin (wrap-free) or limits
     prediction: str = "sample"  # what the denoiser predicts: sample (x_0, paper Alg. 1) or epsilon
     schedule: ScheduleConfig = field(default_factory=ScheduleConfig)
     denoiser: DenoiserConfig = field(default_factory=DenoiserConfig)
+    arm: dict | None = None  # the arm's to_config(); None: a planar arm of `lengths`
 
     def __post_init__(self):
-        if len(self.lengths) < 1 or any(not length > 0 for length in self.lengths):
+        if self.arm is None and (len(self.lengths) < 1 or any(not length > 0 for length in self.lengths)):
             raise ValueError(f"lengths: expected one or more positive bone lengths, got {self.lengths}")
         if self.prediction not in PREDICTION_KINDS:
             raise ValueError(f"prediction: expected one of {PREDICTION_KINDS}, got {self.prediction!r}")
 
+    def build_arm(self):
+        return PlanarArm(self.lengths) if self.arm is None else arm_from_config(self.arm)
+
     @property
     def num_links(self) -> int:
-        return len(self.lengths)
+        return self.build_arm().num_joints
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -47,6 +53,7 @@ class ModelConfig:
             prediction=values["prediction"],
             schedule=ScheduleConfig(**values["schedule"]),
             denoiser=DenoiserConfig(**values["denoiser"]),
+            arm=values.get("arm"),  # checkpoints before the arm object describe a planar arm by `lengths`
         )
 
 
@@ -54,20 +61,24 @@ class IKDiffusion(nn.Module):
     def __init__(self, config: ModelConfig):
         super().__init__()
         self.config = config
-        self.register_buffer("lengths", torch.tensor(config.lengths, dtype=torch.float32), persistent=False)
-        self.representation = AngleRepresentation(config.representation, config.num_links)
+        self.arm = config.build_arm()
+        if self.arm.kind == "planar":  # kept for callers that still read model.lengths
+            self.register_buffer("lengths", torch.tensor(self.arm.lengths, dtype=torch.float32), persistent=False)
+        limits = self.arm.joint_limits if config.representation == "limits" else None
+        self.representation = AngleRepresentation(config.representation, self.arm.num_joints, limits=limits)
         self.schedule = DiffusionSchedule(config.schedule)
-        self.denoiser = build_denoiser(config.denoiser, self.representation, self.lengths)
+        self.denoiser = build_denoiser(config.denoiser, self.representation, self.arm)
+        self._samplers: dict[tuple[str, int | None], Sampler] = {}
 
     def compute_loss(
         self,
-        headings: torch.Tensor,
+        joints: torch.Tensor,
         *,
         tip_loss_weight: float = 0.0,
         snr_gamma: float = 0.0,
         generator: torch.Generator | None = None,
     ) -> dict[str, torch.Tensor]:
-        """Paper Algorithm 1 on a batch of ground-truth poses, headings: (B, N).
+        """Paper Algorithm 1 on a batch of ground-truth poses, joints: (B, J).
 
         Returns `loss` (what is minimised), `theta_loss` (MSE on the diffused vector, the
         paper's loss) and `tip_distance` (mean ||t - t_hat|| of the predicted clean pose,
@@ -77,10 +88,11 @@ class IKDiffusion(nn.Module):
         noisiest steps, whose best answer is a blur, stop drowning out the last steps,
         where the pose's precision is decided.
         """
-        batch = headings.shape[0]
-        device = headings.device
-        targets = tip_position(headings, self.lengths)  # (B, 2)
-        clean = self.representation.encode(headings)  # (B, D)
+        batch = joints.shape[0]
+        device = joints.device
+        arm = self.arm
+        targets = arm.end_effector(joints)  # (B, target_dim)
+        clean = self.representation.encode(joints)  # (B, D)
         t = torch.randint(self.schedule.num_timesteps, (batch,), generator=generator).to(device)
         noise = torch.randn(clean.shape, generator=generator).to(device)
         noisy = self.schedule.add_noise(clean, noise, t)
@@ -97,15 +109,23 @@ class IKDiffusion(nn.Module):
         if snr_gamma > 0:
             snr = (alpha / sigma).squeeze(-1) ** 2
             weight = snr.clamp(max=snr_gamma) / snr_gamma
-        predicted_tip = tip_position(self.representation.decode(predicted_clean), self.lengths)
-        tip_miss = ((predicted_tip - targets) ** 2).sum(-1)  # (B,)
-        per_sample = squared_error.mean(-1) + tip_loss_weight * tip_miss / self.lengths.sum() ** 2
+        position = slice(0, arm.position_dim)
+        predicted_tip = arm.end_effector(self.representation.decode(predicted_clean))[..., position]
+        tip_miss = ((predicted_tip - targets[..., position]) ** 2).sum(-1)  # (B,)
+        per_sample = squared_error.mean(-1) + tip_loss_weight * tip_miss / arm.span**2
         loss = (weight * per_sample).mean()
         return {
             "loss": loss,
             "theta_loss": squared_error.mean().detach(),
             "tip_distance": tip_miss.detach().sqrt().mean(),
         }
+
+    def sampler(self, name: str = "ddpm", steps: int | None = None) -> Sampler:
+        """The sampler `name` with `steps` steps, built once per model: its coefficients depend on the schedule only."""
+        key = (name, steps)
+        if key not in self._samplers:
+            self._samplers[key] = make_sampler(name, self.schedule, steps)
+        return self._samplers[key]
 
     @torch.inference_mode()
     def sample(
@@ -117,17 +137,20 @@ class IKDiffusion(nn.Module):
         steps: int | None = None,
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
+        return_estimates: bool = False,
+        callback: StepCallback | None = None,
     ) -> Trajectory:
-        """Reverse diffusion, targets: (B, 2) -> K = num_samples poses per target, (B, K, N), and the trajectory."""
+        """Reverse diffusion, targets: (B, target_dim) -> K = num_samples poses per target, (B, K, J)."""
         return run_reverse_diffusion(
             self.denoiser,
             self.schedule,
             self.representation,
+            self.sampler(sampler, steps),
             targets,
             num_samples=num_samples,
             prediction=self.config.prediction,
-            sampler=sampler,
-            steps=steps,
             generator=generator,
             return_trajectory=return_trajectory,
+            return_estimates=return_estimates,
+            callback=callback,
         )

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ikdp.kinematics import relative_to_absolute, wrap_angle
+from ikdp.arm import uniform_angles
+from ikdp.kinematics import relative_to_absolute
 
 PRIOR_KINDS = ("uniform", "relaxed", "file")
 
@@ -34,12 +35,23 @@ class PosePrior:
         if self.kind == "file" and self.poses is None:
             raise ValueError("prior: kind 'file' needs poses")
 
-    def sample(self, count: int, num_links: int, *, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Draw `count` poses as absolute link headings, (count, num_links)."""
+    def sample(self, count: int, arm, *, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Draw `count` poses, (count, J). `arm`: an arm, or the number of links of a planar one.
+
+        `uniform` is the arm's own draw (every heading on the circle, or every joint within its
+        limits); `relaxed` and `file` are planar: absolute link headings.
+        """
+        if not isinstance(arm, int):
+            if self.kind == "uniform":
+                return arm.random_poses(count, generator=generator)
+            if arm.kind != "planar":
+                raise ValueError(f"prior {self.kind!r}: defined for planar arms only, got a {arm.kind} arm")
+            arm = arm.num_joints
+        num_links = arm
         if self.kind == "uniform":
-            return wrap_angle((torch.rand(count, num_links, generator=generator) * 2 - 1) * math.pi)
+            return uniform_angles((count, num_links), generator=generator)
         if self.kind == "relaxed":
-            base = (torch.rand(count, 1, generator=generator) * 2 - 1) * math.pi
+            base = uniform_angles((count, 1), generator=generator)
             bends = torch.randn(count, num_links - 1, generator=generator) * self.relaxed_std
             return relative_to_absolute(torch.cat((base, bends), dim=-1))
         if self.poses.shape[1] != num_links:

@@ -1,50 +1,73 @@
-"""Damped least squares (Levenberg-Marquardt) polish of poses toward their targets.
+"""Damped least squares (Levenberg-Marquardt), written once for every arm.
 
-Each step: delta = J^T (J J^T + lambda^2 I)^-1 e, with J the 2xN tip Jacobian and
-e the tip's miss vector. J J^T is 2x2, so its inverse is written out in closed
-form: the whole batch moves in a few tensor ops.
+One step: delta = J^T (J J^T + lambda^2 I)^-1 e, with J the arm's end-effector
+Jacobian (E, J) and e its task error (E,): the tip's miss for a planar arm, the
+position miss and the rotation error for a pose target. For E = 2 the inverse is
+written out in closed form (Cayley-Hamilton), so a batch moves in a few tensor
+ops: the planar denoiser computes this step as a feature at every diffusion step.
 """
 
 from __future__ import annotations
 
+import math
+
 import torch
 
-from ikdp.kinematics import tip_jacobian, tip_position, wrap_angle
+
+def dls_step(jacobian: torch.Tensor, error: torch.Tensor, damping_squared: float) -> torch.Tensor:
+    """jacobian (..., E, J), error (..., E) -> the damped least-squares step (..., J)."""
+    gram = jacobian @ jacobian.transpose(-1, -2)  # (..., E, E)
+    if error.shape[-1] == 2:
+        # A^-1 e = (tr(A) e - A e) / det(A) for A = J J^T + lambda^2 I; det and trace by hand:
+        # torch.linalg costs more than the rest of the step's algebra at this size
+        a = gram[..., 0, 0] + damping_squared
+        b = gram[..., 0, 1]
+        d = gram[..., 1, 1] + damping_squared
+        trace_times_error = (a + d)[..., None] * error
+        gram_times_error = (gram @ error[..., None])[..., 0] + damping_squared * error
+        solved = (trace_times_error - gram_times_error) / (a * d - b * b)[..., None]
+    else:
+        eye = torch.eye(gram.shape[-1], dtype=gram.dtype, device=gram.device)
+        solved = torch.linalg.solve(gram + damping_squared * eye, error[..., None])[..., 0]
+    return (jacobian.transpose(-1, -2) @ solved[..., None])[..., 0]
+
+
+def clamp_task_error(error: torch.Tensor, position_dim: int, max_position: float, max_rotation: float) -> torch.Tensor:
+    """Shorten each miss to at most `max_position` (and a rotation error to `max_rotation` radians).
+
+    Buss's clamping: a far miss linearised in one jump overshoots and oscillates.
+    """
+    position = error[..., :position_dim]
+    position = position * (max_position / position.norm(dim=-1, keepdim=True).clamp(min=max_position))
+    if error.shape[-1] == position_dim:
+        return position
+    rotation = error[..., position_dim:]
+    rotation = rotation * (max_rotation / rotation.norm(dim=-1, keepdim=True).clamp(min=max_rotation))
+    return torch.cat((position, rotation), dim=-1)
 
 
 def damped_least_squares(
-    link_headings: torch.Tensor,
+    arm,
+    joints: torch.Tensor,
     targets: torch.Tensor,
-    lengths: torch.Tensor,
     *,
     steps: int = 5,
     damping: float = 1e-3,
     max_miss_fraction: float = 0.2,
 ) -> torch.Tensor:
-    """link_headings: (..., N), targets: (..., 2) -> refined headings (..., N), wrapped.
+    """joints (..., J), targets (..., target_dim) -> refined joints (..., J), within the arm's limits.
 
-    Each step aims at most `max_miss_fraction` of the reach away (Buss's clamping):
-    a far miss linearised in one jump overshoots and oscillates. Runs in float64:
-    the last steps correct errors near float32's resolution.
+    Each step is followed by `arm.normalize_joints` (headings wrap, limited joints are
+    clamped), so every refined pose respects the limits. Runs in float64: the last steps
+    correct errors near float32's resolution.
     """
-    if steps < 0:
-        raise ValueError(f"refine steps: expected a non-negative integer, got {steps}")
-    dtype = link_headings.dtype
-    headings = link_headings.double()
+    if not isinstance(steps, int) or steps < 0:
+        raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
+    dtype = joints.dtype
+    joints = joints.double()
     targets = targets.double()
-    lengths = lengths.double()
-    max_miss = max_miss_fraction * float(lengths.sum())
+    max_position = max_miss_fraction * arm.span
     for _ in range(steps):
-        miss = targets - tip_position(headings, lengths)  # (..., 2)
-        miss = miss * (max_miss / miss.norm(dim=-1, keepdim=True).clamp(min=max_miss))
-        jacobian = tip_jacobian(headings, lengths)  # (..., 2, N)
-        gram = jacobian @ jacobian.transpose(-1, -2)  # (..., 2, 2)
-        a = gram[..., 0, 0] + damping**2
-        b = gram[..., 0, 1]
-        d = gram[..., 1, 1] + damping**2
-        determinant = a * d - b * b
-        # (J J^T + lambda^2 I)^-1 e by the 2x2 inverse formula
-        solved = torch.stack((d * miss[..., 0] - b * miss[..., 1], a * miss[..., 1] - b * miss[..., 0]), dim=-1)
-        solved = solved / determinant[..., None]
-        headings = headings + (jacobian.transpose(-1, -2) @ solved[..., None])[..., 0]
-    return wrap_angle(headings).to(dtype)
+        error = clamp_task_error(arm.task_error(joints, targets), arm.position_dim, max_position, math.pi / 4)
+        joints = arm.normalize_joints(joints + dls_step(arm.jacobian(joints), error, damping**2))
+    return joints.to(dtype)

@@ -1,90 +1,118 @@
-"""The reverse diffusion loop: from pure noise to a pose, DDPM or DDIM.
+"""The reverse diffusion loop, one for every sampler: from pure noise to a pose.
 
-One short loop, visible top to bottom. The denoiser's condition (time embedding
-and target) does not depend on the noisy sample, so when it is small enough it
-is computed for every step at once: one batched call instead of S small ones,
-which is most of the speed of a single-target solve.
+The loop is short and visible: denoise, estimate x̂0, let the sampler step,
+record, call back. What makes it fast is what it does not do per step:
+- the denoiser's condition (timestep and target) does not depend on the noisy
+  sample, so every step's condition is computed in one batched call per solve;
+- the states live in one preallocated buffer (the trajectory itself when it is
+  asked for, else two slots used in turn), and samplers write into it in place.
+
+A `callback(step_index, timestep, state, estimate)` sees every step as joint
+values (B, K, J) and stops the run by returning True.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
 
 from ikdp.representation import AngleRepresentation
+from ikdp.samplers import Sampler
 from ikdp.schedule import DiffusionSchedule
 
-SAMPLERS = ("ddpm", "ddim")
 PRECOMPUTE_CONDITION_LIMIT = 16 * 2**20  # floats; above this the condition is computed per step
+
+StepCallback = Callable[[int, int, torch.Tensor, torch.Tensor], "bool | None"]
 
 
 @dataclass
 class Trajectory:
-    headings: torch.Tensor  # (B, K, N) the final poses, radians in (-pi, pi]
-    states: torch.Tensor | None  # (S+1, B, K, N) every state from pure noise to final, as headings
-    timesteps: list[int]  # the S timesteps visited, noisiest first
+    headings: torch.Tensor  # (B, K, J) the final poses (the last state reached when stopped)
+    states: torch.Tensor | None  # (S'+1, B, K, J) every state from pure noise on, as joint values
+    estimates: torch.Tensor | None  # (S', B, K, J) the denoiser's x̂0 at each step
+    timesteps: list[int]  # the S timesteps of the sampler, noisiest first
+    stopped: bool = False  # True when the callback stopped the run; S' < S steps were run then
+
+
+def step_conditions(denoiser, timesteps: list[int], targets: torch.Tensor, num_samples: int):
+    """Every step's condition, (S, M, ...), in one call when it fits in memory, else None.
+
+    One target's condition broadcasts over its K rows as it is; several are spread over them.
+    """
+    batch = targets.shape[0]
+    t_all = torch.tensor(timesteps, device=targets.device)
+    per_row = denoiser.condition(t_all[:1], targets[:1]).numel()
+    if len(timesteps) * batch * num_samples * per_row > PRECOMPUTE_CONDITION_LIMIT:
+        return None
+    per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
+    conditions = per_target.unflatten(0, (len(timesteps), batch))
+    if batch > 1:
+        conditions = conditions.repeat_interleave(num_samples, dim=1)
+    return conditions
 
 
 def run_reverse_diffusion(
     denoiser,
     schedule: DiffusionSchedule,
     representation: AngleRepresentation,
+    sampler: Sampler,
     targets: torch.Tensor,
     *,
     num_samples: int = 1,
     prediction: str,
-    sampler: str = "ddpm",
-    steps: int | None = None,
     generator: torch.Generator | None = None,
     return_trajectory: bool = False,
+    return_estimates: bool = False,
+    callback: StepCallback | None = None,
 ) -> Trajectory:
-    """targets: (B, 2) -> K = num_samples poses per target, (B, K, N)."""
-    if sampler not in SAMPLERS:
-        raise ValueError(f"sampler: expected one of {SAMPLERS}, got {sampler!r}")
-    if sampler == "ddpm" and steps not in (None, schedule.num_timesteps):
-        raise ValueError(f"steps: DDPM runs all {schedule.num_timesteps} steps; use sampler='ddim' for {steps}")
-    timesteps = list(range(schedule.num_timesteps - 1, -1, -1)) if sampler == "ddpm" else schedule.ddim_timesteps(steps)
+    """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J)."""
     batch = targets.shape[0]
     rows = batch * num_samples  # M: the K samples of a target are consecutive rows
-    device = targets.device
-    t_all = torch.tensor(timesteps, device=device)
-    row_targets = targets.repeat_interleave(num_samples, dim=0)  # (M, 2)
+    steps = sampler.num_steps
+    dim = representation.dim
+    row_targets = targets.repeat_interleave(num_samples, dim=0)  # (M, C)
+    conditions = step_conditions(denoiser, sampler.timesteps, targets, num_samples)
+    t_all = torch.tensor(sampler.timesteps, device=targets.device)
+    project = not (prediction == "sample" and getattr(denoiser, "output_on_manifold", False))
 
-    precomputed = None
-    condition_size = len(timesteps) * rows * denoiser.condition(t_all[:1], targets[:1]).numel()
-    if condition_size <= PRECOMPUTE_CONDITION_LIMIT:
-        # every step's condition for every distinct target in one call (S*B rows), then spread over the K samples
-        per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
-        precomputed = per_target.unflatten(0, (len(timesteps), batch))
-        if batch > 1:  # one target's condition broadcasts over its K rows as it is; several need spreading
-            precomputed = precomputed.repeat_interleave(num_samples, dim=1)
-
-    # theta_T ~ N(0, I)
-    x = torch.randn((rows, representation.dim), generator=generator, device=device, dtype=targets.dtype)
-    states = [x] if return_trajectory else None
-    for index, t in enumerate(timesteps):
-        if precomputed is not None:
-            condition = precomputed[index]
+    # states: the whole trajectory when asked for, else two slots used in turn
+    like = {"device": targets.device, "dtype": targets.dtype}
+    states = torch.empty((steps + 1 if return_trajectory else 2, rows, dim), **like)
+    estimates = torch.empty((steps, rows, dim), **like) if return_estimates else None
+    torch.randn((rows, dim), generator=generator, out=states[0])  # x_T ~ N(0, I)
+    x = states[0]
+    sampler.reset()
+    unflatten = (batch, num_samples)
+    steps_run, stopped = 0, False
+    for index, t in enumerate(sampler.timesteps):
+        if conditions is not None:
+            condition = conditions[index]
         else:
-            condition = denoiser.condition(t_all[index].expand(batch), targets)  # once per distinct target
+            condition = denoiser.condition(t_all[index].expand(batch), targets)
             if batch > 1:
                 condition = condition.repeat_interleave(num_samples, dim=0)
         output = denoiser.denoise(x, row_targets, condition)
         clean = schedule.predict_clean(output, t, x, prediction)
-        if not (prediction == "sample" and getattr(denoiser, "output_on_manifold", False)):
+        if project:
             clean = representation.project(clean)
-        if sampler == "ddpm":
-            x = schedule.ddpm_step(clean, t, x, generator=generator)
-        else:
-            t_prev = timesteps[index + 1] if index + 1 < len(timesteps) else -1
-            x = schedule.ddim_step(clean, t, t_prev, x)
-        if return_trajectory:
-            states.append(x)
+        if estimates is not None:
+            estimates[index].copy_(clean)
+        next_x = states[index + 1] if return_trajectory else states[(index + 1) % 2]
+        x = sampler.step(index, x, clean, out=next_x, generator=generator)
+        steps_run = index + 1
+        if callback is not None:
+            state_joints = representation.decode(x).unflatten(0, unflatten)
+            estimate_joints = representation.decode(clean).unflatten(0, unflatten)
+            if callback(index, t, state_joints, estimate_joints):
+                stopped = True
+                break
 
-    unflatten = (batch, num_samples)
     return Trajectory(
         headings=representation.decode(x).unflatten(0, unflatten),
-        states=representation.decode(torch.stack(states)).unflatten(1, unflatten) if return_trajectory else None,
-        timesteps=timesteps,
+        states=representation.decode(states[: steps_run + 1]).unflatten(1, unflatten) if return_trajectory else None,
+        estimates=representation.decode(estimates[:steps_run]).unflatten(1, unflatten) if return_estimates else None,
+        timesteps=list(sampler.timesteps),
+        stopped=stopped,
     )

@@ -1,7 +1,8 @@
-"""The DDPM noise schedule (Ho et al. 2020) and its two reverse steps.
+"""The DDPM noise schedule (Ho et al. 2020): betas, alphas and the forward process.
 
 The schedule is not a network: it owns T, the betas and every constant derived
-from them, computed in float64 and kept as float32. Timesteps are 0-based
+from them, computed in float64 and kept as float32. The reverse updates are the
+samplers' (ikdp/samplers.py); they read their coefficients from here. Timesteps are 0-based
 indices: index t here is the paper's step t+1, so t = T-1 is pure noise.
 """
 
@@ -63,7 +64,7 @@ class DiffusionSchedule:
         self.posterior_mean_coef_clean = as32(betas * alphas_cumprod_prev.sqrt() / (1 - alphas_cumprod))
         self.posterior_mean_coef_noisy = as32((1 - alphas_cumprod_prev) * alphas.sqrt() / (1 - alphas_cumprod))
         # Python floats for the sampling loop: indexing a tensor per step costs more than the step's arithmetic.
-        self._floats = {
+        self.floats = {
             name: getattr(self, name).tolist()
             for name in (
                 "alphas_cumprod",
@@ -74,10 +75,6 @@ class DiffusionSchedule:
                 "posterior_mean_coef_noisy",
             )
         }
-
-    def _check_timestep(self, t: int) -> None:
-        if not 0 <= t < self.num_timesteps:
-            raise ValueError(f"timestep: expected 0 <= t < {self.num_timesteps}, got {t}")
 
     def add_noise(self, clean: torch.Tensor, noise: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
         """Forward process q(x_t | x_0) = sqrt(abar_t) x_0 + sqrt(1 - abar_t) eps.  clean, noise: (B, D); t: (B,)."""
@@ -95,38 +92,8 @@ class DiffusionSchedule:
             return model_output
         if prediction != "epsilon":
             raise ValueError(f"prediction: expected one of {PREDICTION_KINDS}, got {prediction!r}")
-        f = self._floats
+        f = self.floats
         return (sample - f["sqrt_one_minus_alphas_cumprod"][t] * model_output) / f["sqrt_alphas_cumprod"][t]
-
-    def ddpm_step(
-        self, clean: torch.Tensor, t: int, sample: torch.Tensor, *, generator: torch.Generator | None = None
-    ) -> torch.Tensor:
-        """One ancestral step x_t -> x_{t-1} (paper Algorithm 2, Ho eq. 6-7), given the estimate of x_0.
-
-        1. mean of q(x_{t-1} | x_t, x_0): a blend of the clean estimate and the current sample
-        2. add sigma_t z with sigma_t^2 the posterior variance; z = 0 at the last step (t = 0)
-        """
-        self._check_timestep(t)
-        f = self._floats
-        mean = torch.add(f["posterior_mean_coef_clean"][t] * clean, sample, alpha=f["posterior_mean_coef_noisy"][t])
-        if t == 0:
-            return mean
-        noise = torch.randn(sample.shape, generator=generator, device=sample.device, dtype=sample.dtype)
-        return mean.add_(noise, alpha=math.sqrt(f["posterior_variance"][t]))
-
-    def ddim_step(self, clean: torch.Tensor, t: int, t_prev: int, sample: torch.Tensor) -> torch.Tensor:
-        """One deterministic DDIM step x_t -> x_{t_prev} (Song et al. 2021, eq. 12 with eta = 0).
-
-        t_prev = -1 means the clean end, where alpha_cumprod is 1 and the step returns x_0.
-        1. the noise implied by x_t and the clean estimate
-        2. re-noise the clean estimate to the level of t_prev along that same noise
-        """
-        self._check_timestep(t)
-        f = self._floats
-        epsilon = (sample - f["sqrt_alphas_cumprod"][t] * clean) / f["sqrt_one_minus_alphas_cumprod"][t]
-        if t_prev < 0:
-            return clean
-        return f["sqrt_alphas_cumprod"][t_prev] * clean + f["sqrt_one_minus_alphas_cumprod"][t_prev] * epsilon
 
     def ddim_timesteps(self, steps: int | None) -> list[int]:
         """Evenly strided timesteps from T-1 down to 0 for a DDIM run of `steps` steps (None = all T)."""

@@ -12,57 +12,51 @@ from pathlib import Path
 import torch
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint
-from ikdp.kinematics import project_to_workspace, reach, tip_position
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
-from ikdp.sampling import SAMPLERS
+from ikdp.samplers import SAMPLERS, sampler_names
+from ikdp.sampling import StepCallback
+from ikdp.shipped import shipped_checkpoint
 
 
 @dataclass
 class SolveResult:
-    angles: torch.Tensor  # (B, K, N) absolute link headings, radians in (-pi, pi]; refined when refine_steps > 0
-    tip_error: torch.Tensor  # (B, K) distance from the tip of `angles` to the target, bone-length units
-    trajectory: torch.Tensor | None  # (S+1, B, K, N) raw sampler states from noise to final, when asked
-    timesteps: list[int]  # the S diffusion timesteps the sampler visited, noisiest first
-    reachable: torch.Tensor  # (B,) False where the target lies outside the arm's reach
-    raw_angles: torch.Tensor  # (B, K, N) the sampler's output before refinement
+    angles: torch.Tensor  # (B, K, J) joint values (planar: absolute link headings in (-pi, pi]); refined if asked
+    tip_error: torch.Tensor  # (B, K) distance from the end effector of `angles` to the target (arm's length unit)
+    trajectory: torch.Tensor | None  # (S+1, B, K, J) raw sampler states from noise to final, when asked
+    timesteps: list[int]  # the S diffusion timesteps of the sampler, noisiest first
+    reachable: torch.Tensor | None  # (B,) False where the target lies outside the arm's reach; None if unknown
+    raw_angles: torch.Tensor  # (B, K, J) the sampler's output before refinement
     raw_tip_error: torch.Tensor  # (B, K) tip error of `raw_angles`
+    estimates: torch.Tensor | None = None  # (S, B, K, J) the denoiser's x̂0 at each step, when asked
+    stopped: bool = False  # True when the callback stopped the solve; the poses are the state reached then
+    rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets of spatial arms
 
-
-def validate_targets(targets) -> torch.Tensor:
-    """Array-like (B, 2) or (2,) -> float32 tensor (B, 2); ValueError naming the problem otherwise."""
-    try:
-        tensor = torch.as_tensor(targets, dtype=torch.float32)
-    except (TypeError, ValueError, RuntimeError) as error:
-        raise ValueError(f"targets: expected numbers of shape (B, 2), could not read them ({error})") from None
-    if tensor.ndim == 1 and tensor.shape[0] == 2:
-        tensor = tensor[None]
-    if tensor.ndim != 2 or tensor.shape[1] != 2 or tensor.shape[0] == 0:
-        raise ValueError(f"targets: expected shape (B, 2) with B >= 1, got {tuple(tensor.shape)}")
-    bad_rows = torch.nonzero(~torch.isfinite(tensor).all(dim=1)).flatten()
-    if len(bad_rows):
-        row = int(bad_rows[0])
-        raise ValueError(f"targets: row {row} is {tensor[row].tolist()}, NaN or inf is not a target")
-    return tensor
+    @property
+    def position_error(self) -> torch.Tensor:
+        """(B, K) the end effector's distance to the target position (= tip_error)."""
+        return self.tip_error
 
 
 class Solver:
-    """A trained IKDP model, ready to solve. Build it with `ikdp.load(path)`."""
+    """A trained IKDP model, ready to solve. Build it with `ikdp.load(path or shipped name)`."""
 
     def __init__(self, model: IKDiffusion, prior: PosePrior, metadata: dict, device: str | torch.device = "cpu"):
         self.device = torch.device(device)
         self.model = model.to(self.device).eval()
+        self.arm = model.arm
         self.prior = prior
         self.metadata = metadata  # model config, training config, metrics at save, source path
 
     @property
     def num_links(self) -> int:
-        return self.model.config.num_links
+        return self.arm.num_joints
 
     @property
     def lengths(self) -> tuple[float, ...]:
-        return self.model.config.lengths
+        """Bone lengths of a planar arm."""
+        return self.arm.lengths
 
     @property
     def timesteps(self) -> int:
@@ -70,8 +64,8 @@ class Solver:
 
     @property
     def reach(self) -> tuple[float, float]:
-        """(inner, outer) radius of the reachable annulus."""
-        return reach(self.lengths)
+        """(inner, outer) radius of a planar arm's reachable annulus."""
+        return self.arm.reach
 
     def solve(
         self,
@@ -83,26 +77,30 @@ class Solver:
         refine_steps: int = 0,
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
+        return_estimates: bool = False,
+        callback: StepCallback | None = None,
     ) -> SolveResult:
-        """K poses for each of B targets.
+        """K poses for each of B targets, (B, target_dim) -> (B, K, J).
 
         An unreachable target is not an error: the model is asked for the nearest
         reachable point (its training never saw farther targets), so the arm reaches
         toward the target as far as it can; `reachable` is False and `tip_error` is the
         distance to the target as asked.
+
+        `callback(step_index, timestep, state, estimate)` is called after every reverse
+        step with the state and the denoiser's x̂0 as joint values (B, K, J); returning
+        True stops the solve at once (`stopped` is then True and no refinement runs).
         """
-        targets = validate_targets(targets).to(self.device)
+        arm = self.arm
+        targets = arm.validate_targets(targets).to(self.device)
         if not isinstance(num_samples, int) or num_samples < 1:
             raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
         if sampler not in SAMPLERS:
-            raise ValueError(f"sampler: expected one of {SAMPLERS}, got {sampler!r}")
+            raise ValueError(f"sampler: expected one of {sampler_names()}, got {sampler!r}")
         if not isinstance(refine_steps, int) or refine_steps < 0:
             raise ValueError(f"refine_steps: expected a non-negative integer, got {refine_steps!r}")
-        lengths = self.model.lengths
-        inner, outer = self.reach
-        radius = targets.norm(dim=-1)
-        reachable = (radius <= outer + 1e-6) & (radius >= inner - 1e-6)
-        conditions = project_to_workspace(targets, self.lengths)
+        reachable = arm.is_reachable(targets)
+        conditions = arm.clamp_to_workspace(targets)
         result = self.model.sample(
             conditions,
             num_samples=num_samples,
@@ -110,17 +108,19 @@ class Solver:
             steps=steps,
             generator=generator,
             return_trajectory=return_trajectory,
+            return_estimates=return_estimates,
+            callback=callback,
         )
-        raw = result.headings  # (B, K, N)
-        raw_error = (tip_position(raw, lengths) - targets[:, None]).norm(dim=-1)
-        if refine_steps:
+        raw = result.headings  # (B, K, J)
+        per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
+        raw_error = arm.tip_error(raw, per_sample_targets)
+        angles, error = raw, raw_error
+        if refine_steps and not result.stopped:
             # aim at the nearest reachable point: for a target beyond reach that is the stretched arm
             goals = conditions[:, None].expand(-1, num_samples, -1)
-            refined = damped_least_squares(raw, goals, lengths, steps=refine_steps)
-            refined_error = (tip_position(refined.double(), lengths.double()) - targets[:, None].double()).norm(dim=-1)
-            angles, error = refined, refined_error.float()
-        else:
-            angles, error = raw, raw_error
+            angles = damped_least_squares(arm, raw, goals, steps=refine_steps)
+            error = arm.tip_error(angles, per_sample_targets)
+        rotation_error = arm.rotation_error(angles, per_sample_targets) if arm.target_dim == 7 else None
         return SolveResult(
             angles=angles,
             tip_error=error,
@@ -129,6 +129,9 @@ class Solver:
             reachable=reachable,
             raw_angles=raw,
             raw_tip_error=raw_error,
+            estimates=result.estimates,
+            stopped=result.stopped,
+            rotation_error=rotation_error,
         )
 
 
@@ -149,8 +152,23 @@ def model_from_checkpoint(payload: dict, source: str = "<memory>") -> IKDiffusio
     return model
 
 
+def resolve_checkpoint(path_or_name: str | Path) -> Path:
+    """A path as given when it exists or looks like a path; else a shipped model's name (`ikdp_n4`)."""
+    path = Path(path_or_name)
+    if path.exists() or path.suffix or len(path.parts) > 1:
+        return path
+    try:
+        return shipped_checkpoint(str(path_or_name))
+    except ValueError as error:
+        raise CheckpointError(f"{path_or_name}: no such file, and {error}") from None
+
+
 def load(path: str | Path, device: str | torch.device = "cpu") -> Solver:
-    """Load an IKDP checkpoint as a Solver. Refuses anything but a valid IKDP checkpoint (CheckpointError)."""
+    """Load an IKDP checkpoint (a path, or a shipped model's name) as a Solver.
+
+    Refuses anything but a valid IKDP checkpoint (CheckpointError, one line).
+    """
+    path = resolve_checkpoint(path)
     payload = read_checkpoint(path)
     model = model_from_checkpoint(payload, str(path))
     try:

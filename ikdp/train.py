@@ -22,7 +22,6 @@ from tqdm import tqdm
 from ikdp._cli import parse_into
 from ikdp.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from ikdp.denoisers import DenoiserConfig
-from ikdp.kinematics import tip_position
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior, make_prior
 from ikdp.schedule import ScheduleConfig
@@ -40,6 +39,8 @@ class TrainConfig:
     prediction: str = "sample"  # the denoiser predicts sample (x_0) or epsilon
     hidden: int = 128  # film: MLP width
     blocks: int = 3  # film: residual blocks
+    kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
+    ema: float = 0.0  # decay of an exponential moving average of the weights, saved for solving (0: none)
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
     tip_loss_weight: float = 100.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
     snr_gamma: float = 5.0  # Min-SNR loss weighting min(SNR, gamma)/gamma; 0 = uniform over t, the paper's
@@ -66,7 +67,9 @@ def build_model(config: TrainConfig) -> IKDiffusion:
         representation=config.representation,
         prediction=config.prediction,
         schedule=ScheduleConfig(timesteps=config.timesteps, kind=config.schedule),
-        denoiser=DenoiserConfig(kind=config.denoiser, hidden=config.hidden, blocks=config.blocks),
+        denoiser=DenoiserConfig(
+            kind=config.denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
+        ),
     )
     return IKDiffusion(model_config)
 
@@ -82,12 +85,12 @@ def learning_rate_factor(step: int, config: TrainConfig) -> float:
 def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: torch.device) -> dict[str, float]:
     """Tip error of the raw DDPM sampler, K=1, on `count` targets drawn from the prior (fixed seed)."""
     generator = torch.Generator().manual_seed(12345)
-    headings = prior.sample(count, model.config.num_links, generator=generator)
-    targets = tip_position(headings, model.lengths.cpu()).to(device)
+    arm = model.arm
+    targets = arm.end_effector(prior.sample(count, arm, generator=generator))
     model.eval()
-    poses = model.sample(targets, num_samples=1, generator=torch.Generator(device).manual_seed(1)).headings[:, 0]
+    poses = model.sample(targets.to(device), generator=torch.Generator(device).manual_seed(1)).headings[:, 0]
     model.train()
-    error = (tip_position(poses, model.lengths) - targets).norm(dim=-1).cpu()
+    error = arm.tip_error(poses.cpu(), targets)
     return {
         "eval_targets": count,
         "tip_error_median": float(error.median()),
@@ -109,11 +112,21 @@ def train(config: TrainConfig) -> Path:
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: learning_rate_factor(step, config))
     data_generator = torch.Generator().manual_seed(config.seed)
     step, seconds_before = 0, 0.0
+    # the averaged weights are the ones a solver loads; the raw ones continue training on --resume
+    averaged = (
+        torch.optim.swa_utils.AveragedModel(model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(config.ema))
+        if config.ema > 0
+        else None
+    )
 
     if config.resume and output.exists():
         payload = read_checkpoint(output)
         resumed = model_from_checkpoint(payload, str(output))
         model.load_state_dict(resumed.state_dict())
+        if averaged is not None:
+            averaged.module.load_state_dict(resumed.state_dict())
+            averaged.n_averaged.fill_(int(payload["train"]["step"]))
+            model.load_state_dict(payload["raw_state_dict"])
         optimizer.load_state_dict(payload["optimizer"])
         scheduler.load_state_dict(payload["scheduler"])
         data_generator.set_state(payload["data_generator"])
@@ -130,7 +143,8 @@ def train(config: TrainConfig) -> Path:
 
     def save(final: bool) -> None:
         nonlocal metrics
-        metrics = measure_accuracy(model, prior, config.eval_targets, device) if config.eval_targets else {}
+        solving_model = averaged.module if averaged is not None else model
+        metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
         metrics["step"] = step
         train_record = {**asdict(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
         train_record["finished"] = final
@@ -143,7 +157,8 @@ def train(config: TrainConfig) -> Path:
                 "prior": prior.to_config(),
                 "train": train_record,
                 "metrics": metrics,
-                "state_dict": model.state_dict(),
+                "state_dict": solving_model.state_dict(),
+                **({"raw_state_dict": model.state_dict()} if averaged is not None else {}),
                 "optimizer": optimizer.state_dict(),
                 "scheduler": scheduler.state_dict(),
                 "data_generator": data_generator.get_state(),
@@ -156,7 +171,7 @@ def train(config: TrainConfig) -> Path:
     model.train()
     try:
         while step < config.steps:
-            headings = prior.sample(config.batch, config.joints, generator=data_generator).to(device)
+            headings = prior.sample(config.batch, model.arm, generator=data_generator).to(device)
             losses = model.compute_loss(
                 headings, tip_loss_weight=config.tip_loss_weight, snr_gamma=config.snr_gamma, generator=data_generator
             )
@@ -165,6 +180,8 @@ def train(config: TrainConfig) -> Path:
             torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
             optimizer.step()
             scheduler.step()
+            if averaged is not None:
+                averaged.update_parameters(model)
             step += 1
             if step % 50 == 0 or step == config.steps:
                 writer.add_scalar("train/theta_loss", float(losses["theta_loss"]), step)

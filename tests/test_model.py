@@ -33,13 +33,22 @@ def test_film_features_are_tip_miss_and_dls_step():
     model = IKDiffusion(ModelConfig(lengths=(1.0, 2.0, 0.5)))
     headings, targets = torch.randn(5, 3), torch.randn(5, 2)
     x = model.representation.encode(headings)
-    features = model.denoiser.features(x, model.representation.unit_vectors(x), targets) / model.denoiser.feature_scale
+    features = model.denoiser.features(x, model.representation.unit_vectors(x), targets)
     miss = targets - tip_position(headings, model.lengths)
     torch.testing.assert_close(features[:, 6:8], miss, atol=1e-5, rtol=0)
     jacobian = tip_jacobian(headings, model.lengths)
     damped = jacobian @ jacobian.transpose(-1, -2) + (DLS_DAMPING * 3.5) ** 2 * torch.eye(2)
     expected = (jacobian.transpose(-1, -2) @ torch.linalg.solve(damped, miss[..., None]))[..., 0]
     torch.testing.assert_close(features[:, 8:], expected, atol=1e-4, rtol=1e-4)
+
+
+def test_kinematic_features_switch_off_above_kinematic_until():
+    config = ModelConfig(lengths=(1.0,) * 3, denoiser=DenoiserConfig(kinematic_until=30))
+    denoiser = IKDiffusion(config).denoiser
+    targets = torch.randn(2, 2)
+    scales = denoiser.condition(torch.tensor([29, 30]), targets)[:, -1, 0, : denoiser.input.in_features]
+    torch.testing.assert_close(scales[0], denoiser.feature_scale)  # t < 30: every feature
+    assert (scales[1, :6] == 1).all() and (scales[1, 6:] == 0).all()  # t >= 30: x_t only
 
 
 @pytest.mark.parametrize("kind", ["angle", "cossin"])

@@ -43,29 +43,6 @@ def test_add_noise_is_the_forward_marginal():
     torch.testing.assert_close(noisy, expected.expand(3, 2))
 
 
-def test_ddpm_step_by_hand():
-    schedule = DiffusionSchedule()
-    clean, sample, t = torch.tensor([[0.5, -0.2]]), torch.tensor([[1.0, 2.0]]), 10
-    step = schedule.ddpm_step(clean, t, sample, generator=torch.Generator().manual_seed(3))
-    z = torch.randn((1, 2), generator=torch.Generator().manual_seed(3))
-    abar, abar_prev = schedule.alphas_cumprod[t].double(), schedule.alphas_cumprod[t - 1].double()
-    beta = schedule.betas[t].double()
-    mean = abar_prev.sqrt() * beta / (1 - abar) * clean + (1 - beta).sqrt() * (1 - abar_prev) / (1 - abar) * sample
-    expected = mean + (beta * (1 - abar_prev) / (1 - abar)).sqrt() * z
-    torch.testing.assert_close(step, expected.float())
-    # the last step adds no noise and lands on the clean estimate
-    torch.testing.assert_close(schedule.ddpm_step(clean, 0, sample), clean)
-
-
-def test_ddim_step_keeps_the_implied_noise():
-    schedule = DiffusionSchedule()
-    clean, noise = torch.tensor([[0.3, 0.4]]), torch.tensor([[-1.0, 0.5]])
-    x_t = schedule.add_noise(clean, noise, torch.tensor([60]))
-    x_prev = schedule.ddim_step(clean, 60, 30, x_t)
-    torch.testing.assert_close(x_prev, schedule.add_noise(clean, noise, torch.tensor([30])))
-    torch.testing.assert_close(schedule.ddim_step(clean, 5, -1, x_t), clean)
-
-
 def test_ddim_timesteps():
     schedule = DiffusionSchedule()
     assert schedule.ddim_timesteps(None) == list(range(79, -1, -1))
@@ -79,7 +56,6 @@ def test_ddim_timesteps():
     [
         (lambda s: s.ddim_timesteps(81), "steps"),
         (lambda s: s.ddim_timesteps(0), "steps"),
-        (lambda s: s.ddpm_step(torch.zeros(1, 2), 80, torch.zeros(1, 2)), "timestep"),
         (lambda s: s.add_noise(torch.zeros(1, 2), torch.zeros(1, 2), torch.tensor([-1])), "timestep"),
         (lambda s: s.predict_clean(torch.zeros(1, 2), 3, torch.zeros(1, 2), "v"), "prediction"),
     ],

@@ -5,6 +5,7 @@ import pytest
 import torch
 
 import ikdp
+from ikdp.arm import PlanarArm
 from ikdp.kinematics import tip_position
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
@@ -25,7 +26,8 @@ def test_solve_shapes_and_metadata(tiny_checkpoint):
     )
     torch.testing.assert_close(out.tip_error, expected, atol=1e-5, rtol=0)
     assert out.reachable.tolist() == [True, True]
-    assert solver.solve([0.5, 0.5], num_samples=1).angles.shape == (1, 1, 3)  # a single (2,) target
+    with pytest.raises(ValueError, match=r"got \(2,\); wrap one target"):
+        solver.solve([0.5, 0.5], num_samples=1)  # 1-D is ambiguous: refused like any other wrong shape
 
 
 @pytest.mark.parametrize(
@@ -68,7 +70,7 @@ def test_refinement_reaches_the_target():
     truth = PosePrior().sample(200, 4, generator=torch.Generator().manual_seed(0))
     targets = tip_position(truth, lengths)
     start = truth + 0.05 * torch.randn_like(truth)  # a sampler's near miss
-    refined = damped_least_squares(start, targets, lengths, steps=5)
+    refined = damped_least_squares(PlanarArm([1.0] * 4), start, targets, steps=5)
     error = (tip_position(refined.double(), lengths.double()) - targets.double()).norm(dim=-1)
     assert (error < 1e-4).float().mean() >= 0.99
 

@@ -58,7 +58,7 @@ def train_mlp(config: MLPConfig, prior: PosePrior, arm: PlanarArm, *, seed: int 
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, config.steps)
     for _ in tqdm(range(config.steps), desc=f"MLP N={config.num_links}", disable=not progress, leave=False):
-        headings = prior.sample(config.batch, config.num_links, generator=generator)
+        headings = prior.sample(config.batch, arm, generator=generator)
         truth = torch.stack((torch.cos(headings), torch.sin(headings)), dim=-1)
         loss = ((model(arm.end_effector(headings)) - truth) ** 2).mean()
         optimizer.zero_grad(set_to_none=True)

@@ -138,7 +138,7 @@ def train_neural_ik(config: NeuralIKConfig, prior: PosePrior, arm: PlanarArm, *,
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, config.steps)
     for _ in tqdm(range(config.steps), desc=f"Neural IK N={config.num_links}", disable=not progress, leave=False):
-        loss = -model.log_likelihood(prior.sample(config.batch, config.num_links, generator=generator)).mean()
+        loss = -model.log_likelihood(prior.sample(config.batch, arm, generator=generator)).mean()
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)

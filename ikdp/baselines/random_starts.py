@@ -38,7 +38,6 @@ def dls_polish(*, iterations: int = 10, damping: float = 1e-3) -> Polish:
     """Damped least squares (ikdp.refine) as a polish: `iterations` steps with the given damping."""
 
     def polish(starts: torch.Tensor, goals: torch.Tensor, arm: PlanarArm) -> torch.Tensor:
-        lengths = torch.tensor(arm.lengths)
-        return damped_least_squares(starts, goals, lengths, steps=iterations, damping=damping)
+        return damped_least_squares(arm, starts, goals, steps=iterations, damping=damping)
 
     return polish

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-DENOISER_KINDS = ("film", "paper")
+DENOISER_KINDS = ("film", "mlp", "paper")
 
 
 @dataclass(frozen=True)
 class DenoiserConfig:
-    kind: str = "film"  # film: our kinematics-aware FiLM MLP; paper: the paper's transformer
-    hidden: int = 128  # film: width of the residual MLP
-    blocks: int = 3  # film: residual blocks
+    kind: str = "film"  # film: kinematics-aware FiLM MLP (planar arms); mlp: plain FiLM MLP; paper: the paper's
+    hidden: int = 128  # film, mlp: width of the residual MLP
+    blocks: int = 3  # film, mlp: residual blocks
+    kinematic_until: int = 0  # film: give the tip miss and DLS step only at t < this (0: at every t)
     time_dim: int = 64  # size of the sinusoidal timestep embedding
     model_dim: int = 64  # paper: transformer token width
     heads: int = 4  # paper: attention heads

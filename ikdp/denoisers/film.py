@@ -20,25 +20,29 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig
 from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.refine import dls_step
 from ikdp.representation import AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the reach
 
 
 class FiLMDenoiser(nn.Module):
-    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, lengths: torch.Tensor):
+    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
         super().__init__()
+        if arm.kind != "planar" or representation.kind == "limits":
+            raise ValueError(f"denoiser 'film': its features are a planar arm's; got a {arm.kind} arm, use 'mlp'")
         self.config = config
         self.representation = representation
         num_links, dim, hidden = representation.num_links, representation.dim, config.hidden
-        self.register_buffer("lengths", lengths.float().clone(), persistent=False)
-        self.reach = float(lengths.sum())
+        self.register_buffer("lengths", torch.tensor(arm.lengths, dtype=torch.float32), persistent=False)
+        self.reach = arm.span
         feature_dim = dim + 2 + num_links  # x_t, the tip's miss vector, a damped least-squares step per link
-        self.register_buffer("perpendicular", torch.tensor([[0.0, -1.0], [1.0, 0.0]]), persistent=False)
-        self.register_buffer("damping_identity", (DLS_DAMPING * self.reach) ** 2 * torch.eye(2), persistent=False)
+        self.damping_squared = (DLS_DAMPING * self.reach) ** 2
         # the miss in tenths of the reach: the last steps correct misses of a few thousandths
         scale = torch.cat((torch.ones(dim), torch.full((2,), 10 / self.reach), torch.ones(num_links)))
         self.register_buffer("feature_scale", scale, persistent=False)
+        kinematic_mask = torch.cat((torch.ones(dim, dtype=torch.bool), torch.zeros(2 + num_links, dtype=torch.bool)))
+        self.register_buffer("kinematic_mask", kinematic_mask, persistent=False)
         self.input = nn.Linear(feature_dim, hidden)
         self.condition_net = nn.Sequential(
             nn.Linear(config.time_dim + 2, hidden),
@@ -56,41 +60,45 @@ class FiLMDenoiser(nn.Module):
         return self.representation.kind == "cossin"
 
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """t: (M,), target: (M, 2) -> FiLM parameters (M, blocks, 2, hidden): scale and shift."""
+        """t: (M,), target: (M, 2) -> (M, blocks + 1, 2, hidden).
+
+        Rows 0..blocks-1 are the FiLM scale and shift of each block. The last row carries, in
+        [0, :F], the scale of each input feature at this t: the kinematic features (the tip's
+        miss and the DLS step) are switched off at t >= config.kinematic_until when that is set.
+        """
         embedded = torch.cat((sinusoidal_embedding(t, self.config.time_dim), target / self.reach), dim=-1)
         film = self.condition_net(embedded).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
-        return torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2)
+        feature_scale = self.feature_scale.expand(len(t), -1)
+        if self.config.kinematic_until > 0:
+            keep = self.kinematic_mask | (t < self.config.kinematic_until)[:, None]
+            feature_scale = feature_scale * keep
+        feature_row = torch.zeros(len(t), 1, 2, self.config.hidden, dtype=film.dtype, device=film.device)
+        feature_row[:, 0, 0, : feature_scale.shape[1]] = feature_scale
+        return torch.cat((torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2), feature_row), dim=1)
 
     def features(self, x: torch.Tensor, unit: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """(M, D) noisy sample, its (M, N, 2) unit bone directions, (M, 2) target -> (M, F).
 
         F is x_t, the tip's miss e and the damped least-squares step J^T (J J^T + lambda^2 I)^-1 e:
-        the turn of each link a DLS solver would take. With B the (2, N) bone vectors, J = R B for
-        R the 90-degree turn, so the step is B^T (B B^T + lambda^2 I)^-1 R^T e: one 2x2 solve,
-        written with Cayley-Hamilton, A^-1 = (tr(A) I - A) / det(A). Few tensor ops on purpose:
-        at sampling time each op's fixed cost, not its arithmetic, is what a step pays.
+        the turn of each link a DLS solver would take (ikdp.refine.dls_step, the refinement's own
+        step). Bone n's column of J is its bone vector turned by 90 degrees.
         """
         bones = unit * self.lengths[:, None]  # (M, N, 2)
         miss = target - bones.sum(dim=-2)  # (M, 2): target - tip
-        damped_gram = bones.transpose(-1, -2) @ bones + self.damping_identity  # (M, 2, 2)
-        a, b, d = damped_gram[:, 0, 0], damped_gram[:, 0, 1], damped_gram[:, 1, 1]
-        turned_miss = miss @ self.perpendicular  # (M, 2): R^T e
-        # det and trace by hand: torch.linalg.det costs more than the rest of the step's algebra
-        solved = ((a + d)[:, None] * turned_miss - (damped_gram @ turned_miss[..., None])[..., 0]) / (a * d - b * b)[
-            :, None
-        ]
-        step = (bones @ solved[..., None])[..., 0]  # (M, N)
-        return torch.cat((x, miss, step), dim=-1) * self.feature_scale
+        jacobian = torch.stack((-bones[..., 1], bones[..., 0]), dim=-2)  # (M, 2, N)
+        step = dls_step(jacobian, miss, self.damping_squared)  # (M, N)
+        return torch.cat((x, miss, step), dim=-1)
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
-        """x: (M, D), target: (M, 2), film: (M, blocks, 2, hidden) -> the estimate of x_0, (M, D).
+        """x: (M, D), target: (M, 2), film: condition() rows -> the estimate of x_0, (M, D).
 
         The network outputs a turn of each link, and x_0 is x_t turned by it: a clean pose
         is on the circle of headings, so a turn can reach any of it, and near t = 0, where
         the pose is nearly right, the turn it needs is close to the DLS step it was given.
         """
         unit = self.representation.unit_vectors(x)
-        h = self.input(self.features(x, unit, target))
+        feature_scale = film[:, -1, 0, : self.input.in_features]
+        h = self.input(self.features(x, unit, target) * feature_scale)
         for index, block in enumerate(self.blocks):
             h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], h, film[:, index, 0])))
         return self.representation.turn(x, self.output(nn.functional.silu(h)), unit=unit)

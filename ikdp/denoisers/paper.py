@@ -17,13 +17,13 @@ from ikdp.representation import AngleRepresentation
 
 
 class PaperDenoiser(nn.Module):
-    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, lengths: torch.Tensor):
+    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
         super().__init__()
         self.config = config
         self.num_links = representation.num_links
         self.token_size = representation.dim // self.num_links  # 1 for angle, 2 for cossin
         width = config.model_dim
-        self.reach = float(lengths.sum())
+        self.arm = arm
         self.token_in = nn.Linear(self.token_size, width)
         self.position = nn.Parameter(torch.randn(self.num_links, width) * 0.02)
 
@@ -36,7 +36,7 @@ class PaperDenoiser(nn.Module):
         self.decoder = nn.TransformerDecoder(nn.TransformerDecoderLayer(**layer_kwargs()), config.layers)
         # "the target (t_x, t_y) is added to the time embedding"
         self.time_mlp = nn.Sequential(nn.Linear(config.time_dim, config.time_dim), nn.SiLU())
-        self.target_in = nn.Linear(2, config.time_dim)
+        self.target_in = nn.Linear(arm.condition_dim, config.time_dim)
         flat = self.num_links * width
         self.mlp = nn.Sequential(
             nn.Linear(flat + config.time_dim, config.mlp_hidden),
@@ -48,8 +48,9 @@ class PaperDenoiser(nn.Module):
         self.token_out = nn.Linear(width, self.token_size)
 
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """t: (M,), target: (M, 2) -> (M, time_dim)."""
-        return self.time_mlp(sinusoidal_embedding(t, self.config.time_dim)) + self.target_in(target / self.reach)
+        """t: (M,), target: (M, target_dim) -> (M, time_dim)."""
+        time = self.time_mlp(sinusoidal_embedding(t, self.config.time_dim))
+        return time + self.target_in(self.arm.target_features(target))
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
         """x: (M, D) -> the estimate of x_0, (M, D). `target` is already inside `condition`."""

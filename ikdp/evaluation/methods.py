@@ -67,7 +67,7 @@ def dls_from_prior(prior: PosePrior, arm: PlanarArm, iterations: int = DLS_ITERA
     polish = dls_polish(iterations=iterations)
 
     def solve(targets, num_samples, generator):
-        starts = prior.sample(targets.shape[0] * num_samples, arm.num_joints, generator=generator)
+        starts = prior.sample(targets.shape[0] * num_samples, arm, generator=generator)
         starts = starts.unflatten(0, (targets.shape[0], num_samples))  # (B, K, N)
         goals = targets[:, None].expand(-1, num_samples, -1)
         headings = polish(starts, goals, arm)

@@ -17,7 +17,7 @@ from ikdp.refine import damped_least_squares
 
 def targets_from_prior(prior: PosePrior, count: int, arm: PlanarArm, *, generator: torch.Generator):
     """FK of poses from the prior: (targets (B, 2), the poses that made them (B, N))."""
-    headings = prior.sample(count, arm.num_joints, generator=generator)
+    headings = prior.sample(count, arm, generator=generator)
     return arm.end_effector(headings), headings
 
 
@@ -54,7 +54,7 @@ def rejection_reference(
     while int(have.min()) < count:
         if draws >= max_draws:
             break
-        headings = prior.sample(chunk, num_links, generator=generator)  # (C, N)
+        headings = prior.sample(chunk, arm, generator=generator)  # (C, N)
         tips = arm.end_effector(headings)
         draws += chunk
         hits = torch.cdist(targets, tips) < radius  # (B, C)
@@ -68,5 +68,4 @@ def rejection_reference(
         return torch.empty(0, count, num_links), complete, draws
     reference = torch.stack([torch.cat(kept[row])[:count] for row in torch.nonzero(complete).flatten().tolist()])
     goals = targets[complete][:, None].expand(-1, count, -1)
-    lengths = torch.tensor(arm.lengths)
-    return damped_least_squares(reference, goals, lengths, steps=polish_steps), complete, draws
+    return damped_least_squares(arm, reference, goals, steps=polish_steps), complete, draws

@@ -14,7 +14,6 @@ from pathlib import Path
 import torch
 from tqdm import tqdm
 
-from ikdp.arm import PlanarArm
 from ikdp.evaluation import experiments
 from ikdp.evaluation.methods import (
     Method,
@@ -47,15 +46,11 @@ class StageResult:
         return cls(**{field.name: data[field.name] for field in dataclasses.fields(cls)})
 
 
-def arm_of(solver) -> PlanarArm:
-    return PlanarArm(solver.lengths)
-
-
 def arm_methods(models: Models, joints: int) -> list[Method]:
     """Every method compared on one arm, in the order of its tables; the random pose last."""
     default = models.default[joints]
     paper = models.paper if joints == FIDELITY_JOINTS else models.variants[joints, 80]
-    arm = arm_of(default)
+    arm = default.arm
     methods = ikdp_variants("IKDP ours", default) + ikdp_variants("IKDP paper denoiser", paper)
     methods += [
         learned_method("MLP regression", models.baselines["mlp", joints, "uniform"], "one forward pass", several=False),
@@ -84,7 +79,7 @@ def measure_accuracy(models: Models, sizes: Sizes, seed: int) -> AccuracyResult:
     """Accuracy on both target sets, and diversity, for every method and arm."""
     arms, fans = {}, {"num_links": FIDELITY_JOINTS, "targets": [], "headings": {}}
     for n in sizes.joints:
-        arm = arm_of(models.default[n])
+        arm = models.default[n].arm
         reach = arm.span
         generator = torch.Generator().manual_seed(seed + n)
         fk_targets, fk_truth = targets_from_prior(UNIFORM, sizes.accuracy_targets, arm, generator=generator)
@@ -120,7 +115,7 @@ def measure_variants(models: Models, sizes: Sizes, seed: int) -> VariantResult:
     """Tables I and II: the paper-denoiser variants, one DDPM sample per FK-of-uniform target."""
     variants = {}
     for (n, t), solver in tqdm(models.variants.items(), desc="variants", leave=False):
-        arm = arm_of(solver)
+        arm = solver.arm
         generator = torch.Generator().manual_seed(seed + n)
         fk_targets, fk_truth = targets_from_prior(UNIFORM, sizes.accuracy_targets, arm, generator=generator)
         accuracy = experiments.accuracy(ikdp_method("variant", solver), fk_targets, fk_truth, arm.span, seed)
@@ -138,7 +133,7 @@ def measure_runtime(models: Models, sizes: Sizes, seed: int) -> RuntimeResult:
     runtime = {"num_links": FIDELITY_JOINTS, "methods": {}}
     if FIDELITY_JOINTS not in sizes.joints:
         return RuntimeResult(runtime=runtime)
-    arm = arm_of(models.default[FIDELITY_JOINTS])
+    arm = models.default[FIDELITY_JOINTS].arm
     generator = torch.Generator().manual_seed(seed + 99)
     batch_targets, _ = targets_from_prior(UNIFORM, sizes.runtime_batch, arm, generator=generator)
     methods = [method for method in arm_methods(models, FIDELITY_JOINTS) if method.family != "reference"]
@@ -161,7 +156,7 @@ class FidelityResult(StageResult):
 
 def fidelity_setups(models: Models) -> dict[str, tuple[PosePrior, list[Method]]]:
     """Per prior, the methods whose K solutions are compared with p(theta | t) of that prior (N = 4)."""
-    arm = arm_of(models.relaxed)
+    arm = models.relaxed.arm
     neural_ik = models.baselines["neural_ik", FIDELITY_JOINTS, "uniform"]
     neural_ik_relaxed = models.baselines["neural_ik", FIDELITY_JOINTS, "relaxed"]
     uniform_methods = [
@@ -179,7 +174,7 @@ def fidelity_setups(models: Models) -> dict[str, tuple[PosePrior, list[Method]]]
 
 def measure_fidelity(models: Models, sizes: Sizes, seed: int) -> FidelityResult:
     """MMD^2 to rejection-sampled references of p(theta | t), uniform and relaxed priors, N = 4."""
-    arm = arm_of(models.relaxed)
+    arm = models.relaxed.arm
     reach, k = arm.span, sizes.fidelity_samples
     fidelity = {}
     for prior_name, (prior, methods) in tqdm(fidelity_setups(models).items(), desc="fidelity", leave=False):
@@ -265,7 +260,7 @@ def figure_data(models: Models, sizes: Sizes, seed: int) -> FigureData:
     for n in sizes.joints:
         solver = models.default[n]
         generator = torch.Generator().manual_seed(seed + 7)
-        target, _ = targets_from_prior(UNIFORM, 1, arm_of(solver), generator=generator)
+        target, _ = targets_from_prior(UNIFORM, 1, solver.arm, generator=generator)
         out = solver.solve(target, num_samples=1, return_trajectory=True, generator=torch.Generator().manual_seed(seed))
         reverse[str(n)] = {
             "target": target[0].tolist(),

@@ -1,0 +1,51 @@
+"""A plain residual MLP conditioned by FiLM: any arm, any representation.
+
+The network sees only x_t; the timestep and the arm's target features enter by
+FiLM (a scale and a shift of every block, as in diffusion_policy). It knows no
+kinematics, so it serves spatial chains with joint limits as well as the planar
+arm, and it is the recipe that measured the most faithful to the pose prior
+(docs/DENOISER_CHOICE.md). It predicts the diffused vector directly (x_0 or the
+noise, as the model's `prediction` says).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ikdp.denoisers.config import DenoiserConfig
+from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.representation import AngleRepresentation
+
+
+class MLPDenoiser(nn.Module):
+    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
+        super().__init__()
+        self.config = config
+        self.arm = arm
+        dim, hidden = representation.dim, config.hidden
+        self.input = nn.Linear(dim, hidden)
+        self.condition_net = nn.Sequential(
+            nn.Linear(config.time_dim + arm.condition_dim, hidden),
+            nn.SiLU(),
+            nn.Linear(hidden, config.blocks * 2 * hidden),
+        )
+        self.norms = nn.ModuleList(nn.LayerNorm(hidden, elementwise_affine=False) for _ in range(config.blocks))
+        self.blocks = nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(config.blocks))
+        self.output = nn.Linear(hidden, dim)
+
+    def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """t: (M,), target: (M, target_dim) -> FiLM parameters (M, blocks, 2, hidden): scale and shift."""
+        features = torch.cat((sinusoidal_embedding(t, self.config.time_dim), self.arm.target_features(target)), dim=-1)
+        film = self.condition_net(features).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
+        return torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2)
+
+    def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
+        """x: (M, D), film: (M, blocks, 2, hidden) -> the prediction (M, D). `target` is inside `film`."""
+        h = self.input(x)
+        for index, (norm, block) in enumerate(zip(self.norms, self.blocks, strict=True)):
+            h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], norm(h), film[:, index, 0])))
+        return self.output(nn.functional.silu(h))
+
+    def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        return self.denoise(x, target, self.condition(t, target))
