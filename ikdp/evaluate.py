@@ -89,8 +89,9 @@ class Run:
         return self._models
 
     def cache_path(self, stage: str) -> Path:
-        """Where a stage's result is cached: keyed by the sizes, the seed, the models and (figures) the out dir."""
-        extra = str(self.out_dir.resolve()) if stage == "figures" else ""
+        """Where a stage's result is cached: keyed by the sizes, the seed and the models, and by what else shapes it:
+        the threads of the timings, the folder the figures were drawn into."""
+        extra = {"runtime": self.config.threads, "figures": str(self.out_dir.resolve())}.get(stage, "")
         key = config_digest(stage, self.sizes, self.config.seed, self.models().fingerprint, extra)
         return self.cache_dir / "stages" / f"{stage}_{key}.json"
 
