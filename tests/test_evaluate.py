@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
+import torch
 
 from ikdp.arm import PlanarArm
 from ikdp.evaluate import STAGES, EvaluateConfig, evaluate, main
+from ikdp.evaluation.pool import single_threaded_pool
 from ikdp.evaluation.training import baseline_job, ikdp_job, train_missing
 from ikdp.priors import PosePrior
 
@@ -47,6 +50,19 @@ def test_an_ikdp_job_is_keyed_by_what_shapes_the_model_not_where_it_trains(tmp_p
     assert ikdp_job(tmp_path / "elsewhere", **arguments).output.name == job.output.name
     for change in ({"timesteps": 40}, {"seed": 1}, {"steps": 101}, {"prior": "relaxed"}, {"settings": {"lr": 3e-4}}):
         assert ikdp_job(tmp_path, **{**arguments, **change}).output != job.output, change
+
+
+@pytest.mark.slow
+def test_pool_workers_run_one_thread_each_and_the_parent_keeps_its_environment(monkeypatch):
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    with single_threaded_pool(2) as pool:
+        threads = [pool.submit(torch.get_num_threads) for _ in range(2)]
+        omp = pool.submit(os.getenv, "OMP_NUM_THREADS")
+        assert [future.result() for future in threads] == [1, 1]
+        assert omp.result() == "1"
+    assert os.environ["OMP_NUM_THREADS"] == "2"
+    with pytest.raises(ValueError, match="workers"), single_threaded_pool(0):
+        pass
 
 
 def test_help_lists_each_option_once_with_its_default(capsys):
@@ -100,7 +116,7 @@ def test_quick_run_writes_every_table_and_figure_and_a_stage_alone_reproduces_it
     for prior in ("uniform", "relaxed"):
         entry = saved["fidelity"][prior]
         assert entry["targets"] > 0 and entry["noise_floor"]["mmd2"] > 0
-    assert results["wall_seconds"] == pytest.approx(sum(saved["stage_seconds"].values()))
+    assert results["wall_seconds"] >= max(saved["stage_seconds"].values())
 
     # one stage alone: it reruns from the cached models and reproduces its part of the full run
     cached = sorted(path.name for path in cache.glob("*.pt"))

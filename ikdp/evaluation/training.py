@@ -11,9 +11,6 @@ poorly, and two processes of one thread each use both cores.
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -25,6 +22,7 @@ from ikdp.arm import PlanarArm
 from ikdp.baselines.mlp import MLPConfig, mlp_from_state, mlp_state, train_mlp
 from ikdp.baselines.neural_ik import NeuralIKConfig, neural_ik_from_state, neural_ik_state, train_neural_ik
 from ikdp.evaluation.cache import config_digest
+from ikdp.evaluation.pool import single_threaded_pool
 from ikdp.priors import PosePrior
 from ikdp.train import TrainConfig, train
 
@@ -178,25 +176,6 @@ def _run_quietly(job: Job) -> Path:
     return job.output
 
 
-def _single_threaded_worker() -> None:
-    torch.set_num_threads(1)
-
-
-@contextlib.contextmanager
-def _environment(**values: str):
-    """Set environment variables for the processes started inside, then put them back."""
-    saved = {name: os.environ.get(name) for name in values}
-    os.environ.update(values)
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
-
-
 def train_missing(jobs: list[Job], *, workers: int) -> list[Path]:
     """Run the jobs whose output is missing; returns the outputs trained.
 
@@ -212,13 +191,7 @@ def train_missing(jobs: list[Job], *, workers: int) -> list[Path]:
             job.run()
             torch.set_num_threads(threads)  # a training sets its own thread count; the evaluation keeps ours
         return [job.output for job in todo]
-    # spawn, not fork: a forked child inherits the parent's OpenMP state and can hang in its first parallel region
-    context = multiprocessing.get_context("spawn")
-    # OpenMP reads OMP_NUM_THREADS when torch loads in a worker, before any initializer could set it
-    with (
-        _environment(OMP_NUM_THREADS="1"),
-        ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker) as pool,
-    ):
+    with single_threaded_pool(workers) as pool:
         futures = [pool.submit(_run_quietly, job) for job in todo]
         for future in tqdm(futures, desc=f"training ({workers} processes)", leave=False):
             future.result()  # a failed job raises here; its log is at <output>.log
