@@ -12,8 +12,8 @@ references), `figure_data`, `figures` and `report` (RESULTS.md and results.json,
 number behind every table and figure, into --out-dir). Each stage's result is cached
 under a key of everything that shapes it; `--only STAGE` runs that stage afresh and
 takes what it needs from the cache where the key matches, computing it otherwise.
-With --threads above 1, what must be trained, and then the measuring stages that time
-nothing, run in that many single-threaded processes (ikdp.evaluation.pool).
+With --threads above 1 (and not --quick), what must be trained, and then the measuring
+stages that time nothing, run in that many single-threaded processes (ikdp.evaluation.pool).
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ class EvaluateConfig:
     cache_dir: str = ".eval_cache"  # trained variants, baselines and stage results are cached here
     checkpoints: str = "checkpoints"  # folder of the shipped checkpoints (and their TensorBoard logs/)
     seed: int = 0  # seeds the targets, the samplers and every training run
-    threads: int = 2  # torch CPU threads, and the single-threaded processes that train what is missing
+    threads: int = 2  # torch CPU threads; a full run also trains and measures in this many one-thread processes
     only: StageName | None = None  # run this stage alone; what it needs comes from the cache where valid
 
 
@@ -77,6 +77,10 @@ class Run:
         self.results: dict[str, stages.StageResult] = {}
         self.seconds: dict[str, float] = {}  # compute time of each stage, when and wherever it ran
         self.started = time.perf_counter()
+        # worker processes for the independent runs; none in a quick run, whose jobs are so small that starting a
+        # worker (a fresh interpreter importing torch) costs more than it shares: its trainings took 64 s in two
+        # workers and 42 s in this process on the shared 2-core machine
+        self.workers = 1 if config.quick else config.threads
         self._models: Models | None = None
 
     def models(self) -> Models:
@@ -87,7 +91,7 @@ class Run:
                 checkpoints=Path(self.config.checkpoints),
                 cache_dir=self.cache_dir,
                 seed=self.config.seed,
-                workers=self.config.threads,
+                workers=self.workers,
             )
             self.seconds["data"] = round(time.perf_counter() - started, 1)
         return self._models
@@ -208,7 +212,7 @@ def measure_in_parallel(run: Run) -> None:
     """The independent measuring stages at once, in single-threaded processes; their results come back
     through the stage cache, where each worker writes its own."""
     run.models()  # trains what is missing first, in its own pool: the workers only load
-    with single_threaded_pool(run.config.threads) as pool:
+    with single_threaded_pool(run.workers) as pool:
         arguments = (run.config, run.sizes, run.command)
         futures = [pool.submit(_stage_in_worker, *arguments, name) for name in INDEPENDENT_STAGES]
         for future in futures:
@@ -226,7 +230,7 @@ def evaluate(config: EvaluateConfig, argv: list[str] | None = None, sizes: Sizes
     arguments = argv if argv is not None else sys.argv[1:]
     command = " ".join(["python -m ikdp.evaluate", *map(shlex.quote, arguments)])
     run = Run(config, sizes or (QUICK if config.quick else FULL), command)
-    if config.only is None and config.threads > 1:
+    if config.only is None and run.workers > 1:
         measure_in_parallel(run)
     for name in [config.only] if config.only else STAGES:
         run_stage(run, name, fresh=True)
