@@ -11,11 +11,29 @@ import pytest
 import torch
 
 from ikdp.arm import PlanarArm
-from ikdp.evaluate import STAGES, EvaluateConfig, evaluate, main
+from ikdp.evaluate import INDEPENDENT_STAGES, STAGES, EvaluateConfig, Run, evaluate, main, measure_in_parallel
+from ikdp.evaluation.models import Sizes
 from ikdp.evaluation.pool import single_threaded_pool
 from ikdp.evaluation.training import baseline_job, ikdp_job, train_missing
 from ikdp.priors import PosePrior
 
+TINY = Sizes(
+    joints=(2, 4),
+    table2_timesteps=(40,),
+    accuracy_targets=8,
+    diversity_targets=2,
+    diversity_samples=2,
+    fidelity_targets=2,
+    fidelity_samples=4,
+    reference_radius=0.1,
+    runtime_batch=4,
+    runtime_repeats=(1, 1),
+    variant_steps=2,
+    variant_batch=8,
+    baseline_steps=2,
+    baseline_batch=8,
+    standin_steps=2,
+)
 FIGURES = ("reverse_process", "forward_noising", "training_curves", "tip_error_cdf", "solution_fans")
 
 
@@ -145,6 +163,20 @@ def test_quick_run_writes_every_table_and_figure_and_a_stage_alone_reproduces_it
     for part in ("arms", "variants", "fidelity", "runtime", "figures"):
         assert again[part] == saved[part], part
     assert sorted(path.name for path in cache.glob("*.pt")) == cached
+
+
+@pytest.mark.slow
+def test_the_independent_stages_in_worker_processes_match_a_run_in_this_process(tmp_path):
+    config = EvaluateConfig(
+        quick=True, out_dir=str(tmp_path / "out"), cache_dir=str(tmp_path / "cache"), checkpoints=str(tmp_path / "none")
+    )
+    here = evaluate(replace(config, threads=1, only="tables_1_2"), [], sizes=TINY)  # trains, then one stage here
+    run = Run(config, TINY, "test")
+    run.workers = 2
+    measure_in_parallel(run)
+    assert set(run.results) == set(INDEPENDENT_STAGES)
+    assert run.results["tables_1_2"].variants == here["variants"]
+    assert set(run.results["accuracy"].arms) == {"2", "4"}
 
 
 def test_missing_shipped_checkpoint_is_an_error_in_a_full_run(tmp_path, capsys):
