@@ -57,7 +57,7 @@ def main(config: FidelityConfig) -> dict:
     reference, complete, draws = rejection_reference(
         prior,
         targets,
-        torch.tensor(arm.lengths),
+        arm,
         count=2 * config.samples,
         radius=config.reference_radius * arm.span,
         generator=generator,

@@ -37,7 +37,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 import os
 import platform
 import statistics
@@ -54,7 +53,9 @@ import torch
 import ikdp
 from benchmarks.pk_chain import PkSettings
 from ikdp._cli import parse_into
-from ikdp.baselines.dls_restarts import solve_dls_restarts
+from ikdp.arm import PlanarArm, uniform_angles
+from ikdp.baselines.random_starts import dls_polish, solve_from_random_starts
+from ikdp.evaluation.machine import cpu_model
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SUCCESS_TOLERANCE = 1e-4  # bone lengths: a target counts as solved when a pose's tip is this close
@@ -110,9 +111,8 @@ QUICK_SIZES = dict(
 
 def random_targets(lengths, count: int, seed: int) -> torch.Tensor:
     """Tips of `count` poses with every link heading uniform on [-pi, pi): (count, 2)."""
-    generator = torch.Generator().manual_seed(seed)
-    headings = (torch.rand(count, len(lengths), generator=generator) * 2 - 1) * math.pi
-    return ikdp.tip_position(headings, torch.tensor(lengths))
+    arm = PlanarArm(lengths)
+    return arm.end_effector(arm.random_poses(count, generator=torch.Generator().manual_seed(seed)))
 
 
 def seeded(seed: int) -> torch.Generator:
@@ -155,15 +155,11 @@ def timing_summary(seconds: list[float], count: int) -> dict:
 def run_dls(targets: torch.Tensor, lengths, config: BenchmarkConfig, *, repeats: int) -> dict:
     """The baseline on `targets`, timed; its error is the best of its restarts."""
     reach = sum(lengths)
-    lengths = torch.tensor(lengths)
+    polish = dls_polish(iterations=config.dls_iterations)
 
     def solve():
-        return solve_dls_restarts(
-            targets,
-            lengths,
-            restarts=config.dls_restarts,
-            iterations=config.dls_iterations,
-            generator=seeded(config.seed + 2),
+        return solve_from_random_starts(
+            polish, targets, PlanarArm(lengths), restarts=config.dls_restarts, generator=seeded(config.seed + 2)
         )
 
     seconds, (_, tip_error) = time_call(solve, repeats=repeats, warmup=config.warmup)
@@ -292,9 +288,7 @@ def run_pytorch_kinematics(targets: torch.Tensor, lengths, config: BenchmarkConf
         return {"skipped": note}
     settings = PkSettings()
     # its default: R uniform starts within the joint range, shared by every target; drawn here so the seed is ours
-    retry_configs = (
-        torch.rand(config.batch_samples, len(lengths), generator=seeded(config.seed + 3)) * 2 - 1
-    ) * math.pi
+    retry_configs = uniform_angles((config.batch_samples, len(lengths)), generator=seeded(config.seed + 3))
     request = {
         "targets": targets,
         "lengths": list(lengths),
@@ -312,7 +306,7 @@ def run_pytorch_kinematics(targets: torch.Tensor, lengths, config: BenchmarkConf
         )
         result = torch.load(result_path, weights_only=True)
     headings = torch.cumsum(result["joint_angles"].double(), dim=-1)  # (B, R, N) relative -> absolute
-    tip_error = (ikdp.tip_position(headings, torch.tensor(lengths).double()) - targets[:, None].double()).norm(dim=-1)
+    tip_error = PlanarArm(lengths).tip_error(headings, targets[:, None])
     return timing_summary(result["seconds"], len(targets)) | {
         "best_error": error_summary(tip_error.min(dim=1).values, sum(lengths)),
         "share_converged_by_its_own_check": result["converged_any"].double().mean().item(),
@@ -501,16 +495,6 @@ def rewrite_docs(path: Path, table: str) -> None:
         return
     path.write_text(text[: begin + len(DOCS_BEGIN)] + "\n" + table + "\n" + text[end:])
     print(f"docs: table rewritten in {path}")
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def git_commit() -> str:

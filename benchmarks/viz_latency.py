@@ -51,6 +51,7 @@ import viser
 from websockets.sync.client import connect
 
 import ikdp
+from ikdp.evaluation.machine import cpu_model
 from ikdp.shipped import DEFAULT_MODEL, shipped_checkpoint
 from ikdp_viz.app import VizApp
 
@@ -60,14 +61,6 @@ def resident_megabytes() -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024
     return float("nan")
-
-
-def cpu_model() -> str:
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or "unknown"
 
 
 def percentiles(values_ms: list[float]) -> dict[str, float]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import re
 import tempfile
 import zipfile
 from pathlib import Path
@@ -25,10 +26,27 @@ class CheckpointError(ValueError):
     """A file that is not a loadable IKDP checkpoint; the message is one line naming the file and why."""
 
 
+def remove_stale_temporaries(path: str | Path) -> list[Path]:
+    """Delete the temp files a killed save of `path` left beside it (ours only, by name); return what was removed.
+
+    A SIGKILL during `save_checkpoint` cannot run its cleanup, so the half-written
+    `.NAME.xxxxxxxx.tmp` stays. Call it only where no other save of `path` is running.
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        return []
+    pattern = re.compile(rf"\.{re.escape(path.name)}\.[a-z0-9_]{{8}}\.tmp")  # save_checkpoint's mkstemp names
+    stale = [entry for entry in path.parent.iterdir() if pattern.fullmatch(entry.name) and entry.is_file()]
+    for entry in stale:
+        entry.unlink(missing_ok=True)
+    return stale
+
+
 def save_checkpoint(path: str | Path, payload: dict) -> None:
     """Write `payload` (without format/version, which are added) to `path` atomically: temp file, fsync, rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(path)
     payload = {"format": FORMAT, "version": VERSION, **payload}
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
@@ -57,9 +75,11 @@ def read_checkpoint(path: str | Path) -> dict:
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as error:
-        first_line = str(error).strip().splitlines()[0] if str(error).strip() else "unsafe content"
+        # torch's message advises re-loading with weights_only=False, i.e. running the file's code: never pass it on.
+        culprit = re.search(r"GLOBAL (\S+)", str(error))
+        what = f"pickled code ({culprit.group(1)})" if culprit else "pickled objects"
         raise CheckpointError(
-            f"{path}: refused, it holds pickled objects that are not plain data ({first_line})"
+            f"{path}: refused, it holds {what}, not plain data; IKDP does not run code from a checkpoint"
         ) from None
     except (RuntimeError, EOFError, OSError, zipfile.BadZipFile, KeyError) as error:
         first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__

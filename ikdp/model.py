@@ -19,6 +19,10 @@ from ikdp.samplers import Sampler, make_sampler
 from ikdp.sampling import StepCallback, Trajectory, run_reverse_diffusion
 from ikdp.schedule import PREDICTION_KINDS, DiffusionSchedule, ScheduleConfig
 
+# The FK-consistency term weighs a rotation miss of 1 degree like a position miss of about 0.25 % of the
+# span (3 mm on a Panda): ||R - R'||_F^2 ~ 2 angle^2, so 0.01 ||R - R'||^2 ~ (0.0025 / 0.0175)^2 angle^2.
+ROTATION_LOSS_SCALE = 0.01
+
 
 @dataclass(frozen=True)
 class ModelConfig:
@@ -83,7 +87,8 @@ class IKDiffusion(nn.Module):
         Returns `loss` (what is minimised), `theta_loss` (MSE on the diffused vector, the
         paper's loss) and `tip_distance` (mean ||t - t_hat|| of the predicted clean pose,
         the paper's second curve). A positive `tip_loss_weight` adds the squared tip miss
-        of the prediction to the loss: an FK-consistency term. A positive `snr_gamma`
+        of the prediction to the loss (for pose targets also its rotation miss): an FK-consistency
+        term. A positive `snr_gamma`
         weights each sample by min(SNR_t, gamma) / gamma (Min-SNR, Hang et al. 2023): the
         noisiest steps, whose best answer is a blur, stop drowning out the last steps,
         where the pose's precision is decided.
@@ -109,10 +114,17 @@ class IKDiffusion(nn.Module):
         if snr_gamma > 0:
             snr = (alpha / sigma).squeeze(-1) ** 2
             weight = snr.clamp(max=snr_gamma) / snr_gamma
-        position = slice(0, arm.position_dim)
-        predicted_tip = arm.end_effector(self.representation.decode(predicted_clean))[..., position]
-        tip_miss = ((predicted_tip - targets[..., position]) ** 2).sum(-1)  # (B,)
-        per_sample = squared_error.mean(-1) + tip_loss_weight * tip_miss / arm.span**2
+        predicted_joints = self.representation.decode(predicted_clean)
+        if arm.target_dim == 7:  # pose targets: the rotation must be consistent too, not only the position
+            predicted_rotation, predicted_tip = arm.end_effector_frame(predicted_joints)
+            true_rotation, _ = arm.end_effector_frame(joints)
+            rotation_miss = ((predicted_rotation - true_rotation) ** 2).sum(dim=(-1, -2))  # ~ 2 angle^2
+        else:
+            predicted_tip = arm.end_effector(predicted_joints)[..., : arm.position_dim]
+            rotation_miss = torch.zeros(batch, device=device)
+        tip_miss = ((predicted_tip - targets[..., : arm.position_dim]) ** 2).sum(-1)  # (B,)
+        consistency = tip_miss / arm.span**2 + ROTATION_LOSS_SCALE * rotation_miss
+        per_sample = squared_error.mean(-1) + tip_loss_weight * consistency
         loss = (weight * per_sample).mean()
         return {
             "loss": loss,

@@ -4,7 +4,9 @@ One step: delta = J^T (J J^T + lambda^2 I)^-1 e, with J the arm's end-effector
 Jacobian (E, J) and e its task error (E,): the tip's miss for a planar arm, the
 position miss and the rotation error for a pose target. For E = 2 the inverse is
 written out in closed form (Cayley-Hamilton), so a batch moves in a few tensor
-ops: the planar denoiser computes this step as a feature at every diffusion step.
+ops. A planar arm's step is also written from its bone vectors (`planar_dls_step`),
+with sums over links instead of batched 2x2 matrix products: the planar denoiser
+computes it as a feature at every diffusion step, where each tensor op counts.
 """
 
 from __future__ import annotations
@@ -30,6 +32,24 @@ def dls_step(jacobian: torch.Tensor, error: torch.Tensor, damping_squared: float
         eye = torch.eye(gram.shape[-1], dtype=gram.dtype, device=gram.device)
         solved = torch.linalg.solve(gram + damping_squared * eye, error[..., None])[..., 0]
     return (jacobian.transpose(-1, -2) @ solved[..., None])[..., 0]
+
+
+def planar_dls_step(bones: torch.Tensor, error: torch.Tensor, damping_squared: float) -> torch.Tensor:
+    """bones (..., N, 2) bone vectors of a planar arm, error (..., 2) tip miss -> `dls_step`'s step (..., N).
+
+    Bone n's Jacobian column is the bone turned by 90 degrees, j_n = (-b_y, b_x), so
+    adj(J J^T + lambda^2 I) = sum_n b_n b_n^T + lambda^2 I: the inverse is that adjugate over
+    its determinant, with no matrix product. FiLMWorkspace repeats these ops, call for call,
+    into preallocated buffers (the two must stay bit-identical: a test checks it).
+    """
+    adjugate = (bones[..., :, None] * bones[..., None, :]).sum(dim=-3)  # (..., 2, 2)
+    adjugate.diagonal(dim1=-2, dim2=-1).add_(damping_squared)
+    determinant = torch.addcmul(
+        adjugate[..., 0, 0] * adjugate[..., 1, 1], adjugate[..., 0, 1], adjugate[..., 0, 1], value=-1
+    )
+    solved = (adjugate * error[..., None, :]).sum(dim=-1) / determinant[..., None]  # (J J^T + lambda^2 I)^-1 e
+    columns = torch.stack((-bones[..., 1], bones[..., 0]), dim=-1)  # (..., N, 2) the Jacobian's columns
+    return (columns * solved[..., None, :]).sum(dim=-1)
 
 
 def clamp_task_error(error: torch.Tensor, position_dim: int, max_position: float, max_rotation: float) -> torch.Tensor:

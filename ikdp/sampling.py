@@ -5,7 +5,9 @@ record, call back. What makes it fast is what it does not do per step:
 - the denoiser's condition (timestep and target) does not depend on the noisy
   sample, so every step's condition is computed in one batched call per solve;
 - the states live in one preallocated buffer (the trajectory itself when it is
-  asked for, else two slots used in turn), and samplers write into it in place.
+  asked for, else two slots used in turn), and samplers write into it in place;
+- a denoiser that offers a `workspace(rows, like)` (the FiLM one does) computes
+  into buffers allocated once per solve, with the same ops as its plain path.
 
 A `callback(step_index, timestep, state, estimate)` sees every step as joint
 values (B, K, J) and stops the run by returning True.
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import torch
 
@@ -66,15 +69,21 @@ def run_reverse_diffusion(
     return_trajectory: bool = False,
     return_estimates: bool = False,
     callback: StepCallback | None = None,
+    conditions: torch.Tensor | None = None,
 ) -> Trajectory:
-    """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J)."""
+    """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J).
+
+    `conditions`: step_conditions() for these targets, when the caller computed them already
+    (ikdp.cuda_graph does, outside the captured graph: they need a host-to-device copy).
+    """
     batch = targets.shape[0]
     rows = batch * num_samples  # M: the K samples of a target are consecutive rows
     steps = sampler.num_steps
     dim = representation.dim
     row_targets = targets.repeat_interleave(num_samples, dim=0)  # (M, C)
-    conditions = step_conditions(denoiser, sampler.timesteps, targets, num_samples)
-    t_all = torch.tensor(sampler.timesteps, device=targets.device)
+    if conditions is None:
+        conditions = step_conditions(denoiser, sampler.timesteps, targets, num_samples)
+    t_all = torch.tensor(sampler.timesteps, device=targets.device) if conditions is None else None
     project = not (prediction == "sample" and getattr(denoiser, "output_on_manifold", False))
 
     # states: the whole trajectory when asked for, else two slots used in turn
@@ -83,6 +92,9 @@ def run_reverse_diffusion(
     estimates = torch.empty((steps, rows, dim), **like) if return_estimates else None
     torch.randn((rows, dim), generator=generator, out=states[0])  # x_T ~ N(0, I)
     x = states[0]
+    make_workspace = getattr(denoiser, "workspace", None)
+    workspace = make_workspace(rows, x) if make_workspace is not None else None
+    denoise = denoiser.denoise if workspace is None else partial(denoiser.denoise, workspace=workspace)
     sampler.reset()
     unflatten = (batch, num_samples)
     steps_run, stopped = 0, False
@@ -93,7 +105,7 @@ def run_reverse_diffusion(
             condition = denoiser.condition(t_all[index].expand(batch), targets)
             if batch > 1:
                 condition = condition.repeat_interleave(num_samples, dim=0)
-        output = denoiser.denoise(x, row_targets, condition)
+        output = denoise(x, row_targets, condition)
         clean = schedule.predict_clean(output, t, x, prediction)
         if project:
             clean = representation.project(clean)

@@ -1,7 +1,9 @@
 """The models shipped with IKDP, found by name: `ikdp.load("ikdp_n4")`.
 
-The `.pt` files live in the repository's top-level `checkpoints/` folder; this
-module is the one place that knows where that folder is at run time.
+The `.pt` files live in the repository's top-level `checkpoints/` folder. A wheel
+carries that folder as `ikdp/checkpoints/` (pyproject.toml maps it there), so this
+module is the one place that knows where it is at run time: inside the installed
+package for a wheel, beside the package for a clone or an editable install.
 """
 
 from __future__ import annotations
@@ -12,8 +14,10 @@ DEFAULT_MODEL = "ikdp_n4"  # the visualizer's model when no --ckpt is given
 
 
 def shipped_dir() -> Path:
-    """The folder holding the shipped checkpoints."""
-    return Path(__file__).resolve().parent.parent / "checkpoints"
+    """The folder holding the shipped checkpoints (it may not exist, e.g. in a sparse checkout)."""
+    package = Path(__file__).resolve().parent
+    in_wheel = package / "checkpoints"
+    return in_wheel if in_wheel.is_dir() else package.parent / "checkpoints"
 
 
 def list_shipped() -> list[Path]:

@@ -3,24 +3,36 @@
 Data is generated on the fly (poses from the prior, targets by FK), as in the
 paper's Algorithm 1. A tqdm bar shows the running loss; TensorBoard gets the
 paper's two curves (loss on theta, tip distance of the prediction) and the
-learning rate. The checkpoint is written atomically at intervals, at the end and
-on Ctrl-C; `--resume` continues from it with the same data stream.
+learning rate, in `<output folder>/logs/<output stem>` unless `--log-dir` says
+otherwise. The checkpoint is written atomically at intervals, at the end and on
+Ctrl-C; `--resume` continues from it with the same data stream, reading the
+training config saved in it (options given on the command line override it).
+
+Several processes, one data stream each, gradients averaged (DistributedDataParallel):
+
+    torchrun --standalone --nproc_per_node=2 -m ikdp.train --joints 4 --output checkpoints/my_n4.pt
+
+`--batch` is per process. Without torchrun there is no process group and no wrapper:
+the same loop runs in one process.
 """
 
 from __future__ import annotations
 
-import math
+import os
 import signal
 import sys
 import time
-from dataclasses import asdict, dataclass
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
+from typing import Literal
 
 import torch
+import torch.distributed as dist
 from tqdm import tqdm
 
-from ikdp._cli import parse_into
-from ikdp.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from ikdp.arm import PlanarArm
+from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.denoisers import DenoiserConfig
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior, make_prior
@@ -30,13 +42,19 @@ from ikdp.solver import model_from_checkpoint
 
 @dataclass(frozen=True)
 class TrainConfig:
-    joints: int = 4  # number of links N
-    lengths: tuple[float, ...] | None = None  # bone lengths, one per link; default all 1
+    """Train an IKDP conditional diffusion model for a planar N-link arm."""
+
+    joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
+    robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, spatial<N> (ikdp.robots)
+    urdf: str = ""  # or any serial chain from a URDF file (with --ee-link)
+    ee_link: str = ""  # the end-effector link of --urdf (--robot panda uses panda_hand)
+    target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
+    lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
     timesteps: int = 80  # diffusion steps T
-    schedule: str = "linear"  # beta schedule: linear or cosine
-    denoiser: str = "film"  # film (ours) or paper (the paper's transformer)
-    representation: str = "cossin"  # cossin (wrap-free) or angle (the paper's raw theta)
-    prediction: str = "sample"  # the denoiser predicts sample (x_0) or epsilon
+    schedule: Literal["linear", "cosine"] = "linear"  # beta schedule
+    denoiser: Literal["film", "mlp", "paper"] = "film"  # film (ours; chain_film on a robot), mlp (plain), paper
+    representation: Literal["cossin", "angle"] = "cossin"  # cossin or angle (paper's theta); robots: joint limits
+    prediction: Literal["sample", "epsilon"] = "sample"  # the denoiser predicts the clean sample (x_0) or the noise
     hidden: int = 128  # film: MLP width
     blocks: int = 3  # film: residual blocks
     kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
@@ -45,40 +63,57 @@ class TrainConfig:
     tip_loss_weight: float = 100.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
     snr_gamma: float = 5.0  # Min-SNR loss weighting min(SNR, gamma)/gamma; 0 = uniform over t, the paper's
     steps: int = 20_000  # optimizer steps
-    batch: int = 1024  # poses per step
+    batch: int = 1024  # poses per step and per process
     lr: float = 1e-3  # peak learning rate (AdamW), cosine decay to a tenth
     warmup: int = 500  # linear warmup steps
-    seed: int = 0  # seeds the weights and the data stream
-    device: str = "cpu"  # cpu, cuda, cuda:1, ...
+    seed: int = 0  # seeds the weights and the data stream (process r draws from seed + r)
+    device: str = "cpu"  # cpu, cuda, cuda:1, ...; under torchrun, cuda means each process's own GPU
     threads: int = 0  # torch CPU threads; 0 leaves torch's default
     output: str = "checkpoints/model.pt"  # checkpoint path
-    log_dir: str = ""  # TensorBoard folder; default runs/<output stem>
+    log_dir: str = ""  # TensorBoard folder; empty: <output folder>/logs/<output stem>
     save_every: int = 1000  # steps between checkpoints
     eval_targets: int = 500  # targets in the accuracy measured at each save
-    resume: bool = False  # continue from --output if it exists
+    resume: bool = False  # continue from --output if it exists, with the training config saved in it
+
+
+RECORD_ONLY = ("step", "seconds", "finished", "torch_version", "threads", "world_size")  # train-record extras
+
+
+def build_chain_arm(config: TrainConfig):
+    """The robot a config names (--robot or --urdf with --ee-link), or None for the planar arm."""
+    if config.robot and config.urdf:
+        raise ValueError("robot: give --robot NAME or --urdf PATH, not both")
+    if config.robot:
+        from ikdp.robots import load_robot
+
+        return load_robot(config.robot, target=config.target)
+    if config.urdf:
+        if not config.ee_link:
+            raise ValueError("ee_link: --urdf needs --ee-link NAME, the end-effector link")
+        from ikdp.chain_arm import ChainArm
+
+        return ChainArm.from_urdf(config.urdf, config.ee_link, target=config.target)
+    return None
 
 
 def build_model(config: TrainConfig) -> IKDiffusion:
+    chain = build_chain_arm(config)
     lengths = config.lengths or (1.0,) * config.joints
-    if len(lengths) != config.joints:
+    if chain is None and len(lengths) != config.joints:
         raise ValueError(f"lengths: got {len(lengths)} bone lengths for {config.joints} joints")
+    # a robot's joints have limits: they are diffused scaled to [-1, 1], and film means its spatial form
+    denoiser = "chain_film" if chain is not None and config.denoiser == "film" else config.denoiser
     model_config = ModelConfig(
         lengths=tuple(float(length) for length in lengths),
-        representation=config.representation,
+        representation="limits" if chain is not None else config.representation,
         prediction=config.prediction,
         schedule=ScheduleConfig(timesteps=config.timesteps, kind=config.schedule),
         denoiser=DenoiserConfig(
-            kind=config.denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
+            kind=denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
         ),
+        arm=chain.to_config() if chain is not None else None,
     )
     return IKDiffusion(model_config)
-
-
-def learning_rate_factor(step: int, config: TrainConfig) -> float:
-    if step < config.warmup:
-        return (step + 1) / config.warmup
-    progress = (step - config.warmup) / max(1, config.steps - config.warmup)
-    return 0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(1.0, progress)))
 
 
 @torch.no_grad()
@@ -91,27 +126,174 @@ def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: t
     poses = model.sample(targets.to(device), generator=torch.Generator(device).manual_seed(1)).headings[:, 0]
     model.train()
     error = arm.tip_error(poses.cpu(), targets)
-    return {
+    metrics = {
         "eval_targets": count,
         "tip_error_median": float(error.median()),
         "tip_error_mean": float(error.mean()),
         "tip_error_p95": float(error.quantile(0.95)),
         "sampler": "ddpm raw, K=1",
     }
+    if arm.target_dim == 7:  # pose targets: the rotation error too, radians
+        rotation = arm.rotation_error(poses.cpu(), targets)
+        metrics.update(rotation_error_median=float(rotation.median()), rotation_error_mean=float(rotation.mean()))
+    if arm.kind == "chain":  # joints outside their limits, summed over the targets
+        metrics["limit_violations"] = (
+            int(arm.limit_violations(poses.cpu()).sum()) if hasattr(arm, "limit_violations") else 0
+        )
+    return metrics
 
 
-def train(config: TrainConfig) -> Path:
+def validate(config: TrainConfig) -> None:
+    """ValueError naming the option when a value cannot train."""
+    positive = {"joints": config.joints, "timesteps": config.timesteps, "steps": config.steps}
+    positive |= {"batch": config.batch, "save_every": config.save_every, "lr": config.lr}
+    for name, value in positive.items():
+        if not value > 0:
+            raise ValueError(f"{name}: got {value}, expected a positive number")
+    for name, value in {
+        "warmup": config.warmup,
+        "eval_targets": config.eval_targets,
+        "threads": config.threads,
+    }.items():
+        if value < 0:
+            raise ValueError(f"{name}: got {value}, expected 0 or more")
+
+
+def log_folder(config: TrainConfig) -> Path:
+    """Where TensorBoard events go: beside the checkpoint unless --log-dir says otherwise."""
+    output = Path(config.output)
+    return Path(config.log_dir) if config.log_dir else output.parent / "logs" / output.stem
+
+
+def saved_config(payload: dict) -> TrainConfig:
+    """The TrainConfig a checkpoint was trained with (its `train` record; unknown or missing keys are skipped)."""
+    record = payload["train"]
+    values = {field.name: record[field.name] for field in fields(TrainConfig) if field.name in record}
+    if isinstance(values.get("lengths"), list):
+        values["lengths"] = tuple(values["lengths"])
+    return replace(TrainConfig(), **values)
+
+
+def warmup_cosine(optimizer: torch.optim.Optimizer, config: TrainConfig) -> torch.optim.lr_scheduler.LRScheduler:
+    """Linear warm-up from lr/warmup to lr over `warmup` steps, then cosine decay to lr/10 at the last step."""
+    cosine = torch.optim.lr_scheduler.CosineAnnealingLR(
+        optimizer, T_max=max(1, config.steps - config.warmup), eta_min=config.lr / 10
+    )
+    if config.warmup == 0:
+        return cosine
+    warmup = torch.optim.lr_scheduler.LinearLR(
+        optimizer, start_factor=1 / config.warmup, end_factor=1.0, total_iters=config.warmup - 1
+    )
+    return torch.optim.lr_scheduler.SequentialLR(optimizer, [warmup, cosine], milestones=[config.warmup])
+
+
+@dataclass(frozen=True)
+class Distributed:
+    """Where this process stands among the training processes; one process (no torchrun) is rank 0 of 1."""
+
+    rank: int = 0  # this process's index
+    world_size: int = 1  # processes in the run
+    device: torch.device = torch.device("cpu")  # the device this process trains on
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+
+def start_processes(config: TrainConfig) -> Distributed:
+    """Join torchrun's process group when torchrun started us (gloo on CPU, nccl on GPUs); else one process."""
+    device = torch.device(config.device)
+    if "WORLD_SIZE" not in os.environ:  # not under torchrun: the plain one-process path, no process group
+        return Distributed(device=device)
+    local_rank = int(os.environ.get("LOCAL_RANK", "0"))
+    if device.type == "cuda":
+        device = torch.device("cuda", local_rank)  # one GPU per process, whatever index --device named
+        torch.cuda.set_device(device)
+    if not dist.is_initialized():
+        dist.init_process_group(backend="nccl" if device.type == "cuda" else "gloo")
+    return Distributed(rank=dist.get_rank(), world_size=dist.get_world_size(), device=device)
+
+
+class TrainingLoss(torch.nn.Module):
+    """The model's loss as a forward pass, so DistributedDataParallel sees it and averages the gradients."""
+
+    def __init__(self, model: IKDiffusion, config: TrainConfig):
+        super().__init__()
+        self.model = model
+        self.tip_loss_weight = config.tip_loss_weight
+        self.snr_gamma = config.snr_gamma
+
+    def forward(self, headings: torch.Tensor, generator: torch.Generator) -> dict[str, torch.Tensor]:
+        return self.model.compute_loss(
+            headings, tip_loss_weight=self.tip_loss_weight, snr_gamma=self.snr_gamma, generator=generator
+        )
+
+
+def draw_batch(
+    prior: PosePrior, arm: PlanarArm, batch: int, generator: torch.Generator, device: torch.device
+) -> torch.Tensor:
+    """One batch of ground-truth poses from the prior: (batch, N) absolute headings."""
+    return prior.sample(batch, arm, generator=generator).to(device)
+
+
+def training_step(
+    loss: torch.nn.Module,
+    headings: torch.Tensor,
+    generator: torch.Generator,
+    optimizer: torch.optim.Optimizer,
+    scheduler: torch.optim.lr_scheduler.LRScheduler,
+) -> dict[str, torch.Tensor]:
+    """One optimizer step on `headings`; under DDP the backward pass averages the gradients over processes."""
+    losses = loss(headings, generator)
+    optimizer.zero_grad(set_to_none=True)
+    losses["loss"].backward()
+    torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
+    optimizer.step()
+    scheduler.step()
+    return losses
+
+
+def gather_data_states(data_generator: torch.Generator, processes: Distributed) -> list[torch.Tensor]:
+    """Every process's data-stream state, in rank order (a collective: every process must call it)."""
+    if processes.world_size == 1:
+        return [data_generator.get_state()]
+    states: list = [None] * processes.world_size
+    dist.all_gather_object(states, data_generator.get_state())
+    return states
+
+
+StepHook = Callable[[int, IKDiffusion, torch.Tensor], None]  # (step just taken, model, the batch it drew)
+
+
+def train(config: TrainConfig, on_step: StepHook | None = None) -> Path:
+    """Train (in every process torchrun started, if it did) and return the checkpoint's path.
+
+    `on_step`, when given, is called in every process after each optimizer step, to watch a run.
+    """
+    validate(config)
     if config.threads:
         torch.set_num_threads(config.threads)
-    device = torch.device(config.device)
+    joins_group = "WORLD_SIZE" in os.environ and not dist.is_initialized()
+    processes = start_processes(config)
+    try:
+        return _train(config, processes, on_step)
+    finally:
+        if joins_group:
+            dist.destroy_process_group()
+
+
+def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None) -> Path:
+    device = processes.device
     output = Path(config.output)
-    torch.manual_seed(config.seed)
+    torch.manual_seed(config.seed)  # the same initial weights in every process
     model = build_model(config).to(device)
-    prior = make_prior(config.prior, config.joints)
+    prior = make_prior(config.prior, model.arm.num_joints)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=0.0)
-    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda step: learning_rate_factor(step, config))
-    data_generator = torch.Generator().manual_seed(config.seed)
+    scheduler = warmup_cosine(optimizer, config)
+    data_generator = torch.Generator().manual_seed(config.seed + processes.rank)
     step, seconds_before = 0, 0.0
+    if processes.is_main:
+        remove_stale_temporaries(output)  # a save killed mid-write (SIGKILL) left its temp file
     # the averaged weights are the ones a solver loads; the raw ones continue training on --resume
     averaged = (
         torch.optim.swa_utils.AveragedModel(model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(config.ema))
@@ -129,19 +311,34 @@ def train(config: TrainConfig) -> Path:
             model.load_state_dict(payload["raw_state_dict"])
         optimizer.load_state_dict(payload["optimizer"])
         scheduler.load_state_dict(payload["scheduler"])
-        data_generator.set_state(payload["data_generator"])
         step = int(payload["train"]["step"])
         seconds_before = float(payload["train"]["seconds"])
-        print(f"resuming {output} at step {step}", file=sys.stderr)
+        states = payload.get("data_generators") or [payload["data_generator"]]
+        if len(states) == processes.world_size:
+            data_generator.set_state(states[processes.rank])
+        else:  # another number of processes than the run saved: fresh streams, still one per process
+            data_generator.manual_seed(config.seed + processes.rank + 1_000_003 * step)
+            if processes.is_main:
+                print(f"resuming with {processes.world_size} processes, saved with {len(states)}: new data streams")
+        if processes.is_main:
+            print(f"resuming {output} at step {step}", file=sys.stderr)
 
-    from torch.utils.tensorboard import SummaryWriter  # imported late: slow, and only training needs it
+    loss = TrainingLoss(model, config)
+    if processes.world_size > 1:
+        loss = torch.nn.parallel.DistributedDataParallel(loss, device_ids=[device] if device.type == "cuda" else None)
 
-    log_dir = Path(config.log_dir or Path("runs") / output.stem)
-    writer = SummaryWriter(str(log_dir), purge_step=step)
+    writer = None
+    if processes.is_main:
+        try:
+            from torch.utils.tensorboard import SummaryWriter  # imported late: slow, and only training needs it
+        except ImportError:
+            raise ValueError("TensorBoard is not installed: pip install 'ikdp[train]'") from None
+        writer = SummaryWriter(str(log_folder(config)), purge_step=step)
+        print(f"TensorBoard logs: {log_folder(config)}", file=sys.stderr)
     started = time.perf_counter()
     metrics: dict = {}
 
-    def save(final: bool) -> None:
+    def save(final: bool, data_states: list[torch.Tensor] | None) -> None:
         nonlocal metrics
         solving_model = averaged.module if averaged is not None else model
         metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
@@ -150,40 +347,38 @@ def train(config: TrainConfig) -> Path:
         train_record["finished"] = final
         train_record["torch_version"] = str(torch.__version__)
         train_record["threads"] = torch.get_num_threads()
-        save_checkpoint(
-            output,
-            {
-                "model": model.config.to_dict(),
-                "prior": prior.to_config(),
-                "train": train_record,
-                "metrics": metrics,
-                "state_dict": solving_model.state_dict(),
-                **({"raw_state_dict": model.state_dict()} if averaged is not None else {}),
-                "optimizer": optimizer.state_dict(),
-                "scheduler": scheduler.state_dict(),
-                "data_generator": data_generator.get_state(),
-            },
-        )
+        train_record["world_size"] = processes.world_size
+        payload = {
+            "model": model.config.to_dict(),
+            "prior": prior.to_config(),
+            "train": train_record,
+            "metrics": metrics,
+            "state_dict": solving_model.state_dict(),  # the averaged weights when --ema: what a solver loads
+            **({"raw_state_dict": model.state_dict()} if averaged is not None else {}),
+            "optimizer": optimizer.state_dict(),
+            "scheduler": scheduler.state_dict(),
+            "data_generator": data_generator.get_state(),
+        }
+        if data_states is not None:
+            payload["data_generators"] = data_states
+        save_checkpoint(output, payload)
         writer.add_scalar("eval/tip_error_median", metrics.get("tip_error_median", float("nan")), step)
 
     interrupted = False
-    progress = tqdm(total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True)
+    progress = tqdm(
+        total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True, disable=not processes.is_main
+    )
     model.train()
     try:
         while step < config.steps:
-            headings = prior.sample(config.batch, model.arm, generator=data_generator).to(device)
-            losses = model.compute_loss(
-                headings, tip_loss_weight=config.tip_loss_weight, snr_gamma=config.snr_gamma, generator=data_generator
-            )
-            optimizer.zero_grad(set_to_none=True)
-            losses["loss"].backward()
-            torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-            optimizer.step()
-            scheduler.step()
+            headings = draw_batch(prior, model.arm, config.batch, data_generator, device)
+            losses = training_step(loss, headings, data_generator, optimizer, scheduler)
             if averaged is not None:
                 averaged.update_parameters(model)
             step += 1
-            if step % 50 == 0 or step == config.steps:
+            if on_step is not None:
+                on_step(step, model, headings)
+            if processes.is_main and (step % 50 == 0 or step == config.steps):
                 writer.add_scalar("train/theta_loss", float(losses["theta_loss"]), step)
                 writer.add_scalar("train/tip_distance", float(losses["tip_distance"]), step)
                 writer.add_scalar("train/lr", scheduler.get_last_lr()[0], step)
@@ -192,29 +387,43 @@ def train(config: TrainConfig) -> Path:
                 )
             progress.update(1)
             if step % config.save_every == 0 and step < config.steps:
-                save(final=False)
+                data_states = gather_data_states(data_generator, processes)
+                if processes.is_main:
+                    save(final=False, data_states=data_states)
+        data_states = gather_data_states(data_generator, processes)
     except KeyboardInterrupt:
-        interrupted = True
+        interrupted = True  # no collective now: the other processes may be gone; they resume on fresh streams
+        data_states = None if processes.world_size > 1 else [data_generator.get_state()]
     progress.close()
-    save(final=not interrupted)
-    writer.close()
-    state = "interrupted, resumable with --resume" if interrupted else "done"
-    print(
-        f"{output}: {state} at step {step}; median tip error {metrics.get('tip_error_median', float('nan')):.4g}",
-        file=sys.stderr,
-    )
+    if processes.is_main:
+        save(final=not interrupted, data_states=data_states)
+        writer.close()
+        state = "interrupted, resumable with --resume" if interrupted else "done"
+        median = metrics.get("tip_error_median", float("nan"))
+        print(f"{output}: {state} at step {step}; median tip error {median:.4g}", file=sys.stderr)
     if interrupted:
         raise SystemExit(130)
     return output
 
 
+def parse_config(argv: list[str] | None = None) -> TrainConfig:
+    """The command line as a TrainConfig; with --resume, options not given come from the checkpoint's own record."""
+    import tyro  # imported here: only the command line needs it
+
+    config = tyro.cli(TrainConfig, args=argv, prog="ikdp-train")
+    output = Path(config.output)
+    if config.resume and output.exists():
+        saved = replace(saved_config(read_checkpoint(output)), output=config.output, resume=True)
+        config = tyro.cli(TrainConfig, args=argv, prog="ikdp-train", default=saved)
+    return config
+
+
 def main(argv: list[str] | None = None) -> None:
-    config = parse_into(TrainConfig, "Train an IKDP conditional diffusion model for a planar N-link arm.", argv)
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill saves a checkpoint as Ctrl-C does
     try:
-        train(config)
+        train(parse_config(argv))
     except (ValueError, CheckpointError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"ikdp-train: error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
 
 

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 import ikdp
-from ikdp.checkpoint import read_checkpoint, save_checkpoint
+from ikdp.checkpoint import read_checkpoint, remove_stale_temporaries, save_checkpoint
 
 
 def test_round_trip_gives_identical_samples(tiny_checkpoint):
@@ -54,9 +54,25 @@ def test_pickled_code_never_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     path = tmp_path / "evil.pt"
     torch.save({"format": "ikdp-checkpoint", "version": 1, "payload": _RunsCode()}, path, pickle_protocol=2)
-    with pytest.raises(ikdp.CheckpointError, match="refused"):
+    with pytest.raises(ikdp.CheckpointError, match="refused") as error:
         ikdp.load(path)
     assert not (tmp_path / "pwned_by_checkpoint").exists()
+    message = str(error.value)
+    assert "\n" not in message and "system" in message  # one line, naming what it refused
+    assert "weights_only" not in message  # torch's advice to load it anyway must not reach the user
+
+
+def test_stale_temporaries_are_removed_by_the_next_save(tmp_path):
+    path = tmp_path / "model.pt"
+    killed_save = tmp_path / ".model.pt.k3_x9q2a.tmp"  # what a SIGKILL during a save leaves
+    killed_save.write_bytes(b"")
+    not_ours = [".model.pt.backup.tmp", ".other.pt.k3_x9q2a.tmp", "model.pt.k3_x9q2a.tmp", "notes.tmp"]
+    for name in not_ours:
+        (tmp_path / name).write_bytes(b"keep")
+    assert remove_stale_temporaries(tmp_path / "absent" / "model.pt") == []
+    save_checkpoint(path, {"model": {}, "prior": {}, "train": {}, "metrics": {}, "state_dict": {}})
+    assert not killed_save.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*not_ours, "model.pt"])
 
 
 def test_other_version_is_refused(tiny_checkpoint, tmp_path):

@@ -7,6 +7,7 @@ import math
 import pytest
 import torch
 
+from ikdp.arm import PlanarArm
 from ikdp.evaluation.metrics import (
     angle_distance,
     both_elbows_share,
@@ -79,7 +80,7 @@ def test_rejection_reference_reaches_targets_and_follows_the_prior():
     lengths = torch.ones(2)
     targets = torch.tensor([[1.2, 0.5], [0.0, -1.5]])
     reference, complete, draws = rejection_reference(
-        PosePrior("uniform"), targets, lengths, count=40, radius=0.05, generator=generator, chunk=2**15
+        PosePrior("uniform"), targets, PlanarArm((1.0, 1.0)), count=40, radius=0.05, generator=generator, chunk=2**15
     )
     assert complete.all() and reference.shape == (2, 40, 2) and draws > 0
     miss = (tip_position(reference.double(), lengths.double()) - targets[:, None].double()).norm(dim=-1)
@@ -93,7 +94,7 @@ def test_rejection_reference_leaves_out_unreachable_targets():
     reference, complete, _ = rejection_reference(
         PosePrior("uniform"),
         torch.tensor([[1.0, 0.0], [5.0, 0.0]]),
-        torch.ones(2),
+        PlanarArm((1.0, 1.0)),
         count=5,
         radius=0.05,
         generator=torch.Generator().manual_seed(0),
@@ -104,7 +105,7 @@ def test_rejection_reference_leaves_out_unreachable_targets():
 
 
 def test_disk_targets_fill_the_annulus():
-    targets = targets_in_disk(4000, torch.ones(3), generator=torch.Generator().manual_seed(0))
+    targets = targets_in_disk(4000, PlanarArm((1.0, 1.0, 1.0)), generator=torch.Generator().manual_seed(0))
     radius = targets.norm(dim=-1)
     assert radius.max() <= 3.0 + 1e-6
     assert (radius < 1.5).double().mean().item() == pytest.approx(0.25, abs=0.03)  # area share of the inner disk

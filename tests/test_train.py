@@ -1,16 +1,20 @@
+import os
+import re
 import signal
+import socket
 import subprocess
 import sys
 import time
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
 import torch
 
 import ikdp
-from ikdp._cli import parse_into
+from ikdp.checkpoint import read_checkpoint
 from ikdp.priors import PosePrior, load_pose_file, make_prior
-from ikdp.train import TrainConfig, train
+from ikdp.train import TrainConfig, parse_config, train, warmup_cosine
 
 
 def small_config(tmp_path, **changes):
@@ -43,21 +47,60 @@ def test_training_is_repeatable_and_resumable(tmp_path):
         torch.testing.assert_close(a[name], b[name], rtol=0, atol=0)
 
 
-def test_training_writes_tensorboard_curves(tmp_path):
-    train(small_config(tmp_path, steps=50))
-    events = list((tmp_path / "tb").glob("events.out.tfevents.*"))
-    assert events
+def test_training_writes_tensorboard_curves_beside_the_checkpoint(tmp_path, capsys):
+    stale = tmp_path / ".model.pt.zz_9x8y7.tmp"  # a save killed by SIGKILL left it
+    stale.write_bytes(b"")
+    train(small_config(tmp_path, steps=50, log_dir=""))
+    assert not stale.exists()
+    logs = tmp_path / "logs" / "model"
+    assert list(logs.glob("events.out.tfevents.*"))
+    assert str(logs) in capsys.readouterr().err  # training says where its logs are
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-    accumulator = EventAccumulator(str(tmp_path / "tb"))
+    accumulator = EventAccumulator(str(logs))
     accumulator.Reload()
     assert {"train/theta_loss", "train/tip_distance", "train/lr"} <= set(accumulator.Tags()["scalars"])
 
 
 def test_cli_is_generated_from_the_dataclass():
-    config = parse_into(TrainConfig, "test", ["--joints", "3", "--lengths", "1", "0.5", "2", "--no-resume"])
+    config = parse_config(["--joints", "3", "--lengths", "1", "0.5", "2", "--no-resume", "--log-dir", ""])
     assert config.joints == 3 and config.lengths == (1.0, 0.5, 2.0) and config.resume is False
     assert config.timesteps == TrainConfig.timesteps  # defaults come from the dataclass only
+
+
+def test_help_shows_each_option_once_with_its_default():
+    result = subprocess.run([sys.executable, "-m", "ikdp.train", "--help"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    options = re.findall(r"^\W*(--[a-z-]+)", result.stdout, flags=re.MULTILINE)  # the flag opening each entry
+    expected = ["--" + field.name.replace("_", "-") for field in fields(TrainConfig)]
+    assert sorted(options) == sorted(expected)
+    assert "--joints INT" in result.stdout and "--no-resume" in result.stdout
+    assert result.stdout.count("(default:") == len(fields(TrainConfig))
+
+
+def test_resume_reads_the_training_config_from_the_checkpoint(tmp_path):
+    first = small_config(tmp_path, steps=10, hidden=8, prior="relaxed", lr=3e-3)
+    output = train(first)
+    assert read_checkpoint(output)["train"]["world_size"] == 1
+    config = parse_config(["--output", str(output), "--resume", "--steps", "20"])
+    assert config == replace(first, steps=20, resume=True)  # the command line overrides, the checkpoint fills in
+    assert parse_config(["--output", str(output), "--steps", "20"]).hidden == TrainConfig.hidden  # no --resume
+
+
+def test_learning_rate_warms_up_then_decays_to_a_tenth():
+    config = TrainConfig(steps=1100, warmup=100, lr=1e-3)
+    optimizer = torch.optim.SGD([torch.nn.Parameter(torch.zeros(1))], lr=config.lr)
+    scheduler = warmup_cosine(optimizer, config)
+    rates = []
+    for _ in range(config.steps):
+        rates.append(optimizer.param_groups[0]["lr"])
+        optimizer.step()
+        scheduler.step()
+    assert rates[0] == pytest.approx(1e-5)  # lr / warmup
+    assert rates[49] == pytest.approx(0.5e-3)  # (step + 1) / warmup of the peak
+    assert rates[99] == pytest.approx(1e-3) and rates[100] == pytest.approx(1e-3)
+    assert rates[600] == pytest.approx(0.55e-3)  # half-way down the cosine: between the peak and a tenth
+    assert rates[-1] == pytest.approx(1e-4, rel=1e-3)  # a tenth of the peak at the end
 
 
 def test_cli_bad_option_exits_with_a_message(tmp_path):
@@ -161,7 +204,70 @@ def test_describe_rebuilds_the_training_command(tiny_checkpoint):
 
     train = torch.load(tiny_checkpoint, weights_only=True)["train"]
     command = training_command(train)
-    rebuilt = parse_into(TrainConfig, "test", shlex.split(command)[3:])
+    rebuilt = parse_config(shlex.split(command)[3:])
     for name in ("joints", "steps", "batch", "hidden", "blocks", "timesteps", "threads", "output", "log_dir"):
         assert getattr(rebuilt, name) == train[name], name
     assert str(tiny_checkpoint) in describe([str(tiny_checkpoint)])
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _distributed_worker(rank: int, world_size: int, port: int, folder: str) -> None:
+    """One of the processes torchrun would start: its environment, then the real training entry point."""
+    os.environ.update(
+        MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), LOCAL_RANK=str(rank), WORLD_SIZE=str(world_size)
+    )
+    records = []
+
+    def watch(step, model, headings):
+        weights = torch.cat([parameter.detach().flatten() for parameter in model.parameters()])
+        records.append({"step": step, "weights": weights.clone(), "batch": headings.clone()})
+
+    config = TrainConfig(
+        joints=2, steps=4, batch=16, hidden=16, blocks=1, timesteps=10, eval_targets=5, threads=1, save_every=100
+    )
+    train(replace(config, output=f"{folder}/model.pt"), on_step=watch)
+    torch.save(records, f"{folder}/rank{rank}.pt")
+
+
+@pytest.mark.slow
+def test_two_processes_average_their_gradients(tmp_path, monkeypatch):
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    torch.multiprocessing.spawn(_distributed_worker, args=(2, _free_port(), str(tmp_path)), nprocs=2, join=True)
+    first, second = (torch.load(tmp_path / f"rank{rank}.pt", weights_only=True) for rank in (0, 1))
+    assert [record["step"] for record in first] == [record["step"] for record in second] == [1, 2, 3, 4]
+    for a, b in zip(first, second, strict=True):
+        assert not torch.equal(a["batch"], b["batch"])  # each process drew its own data
+        torch.testing.assert_close(a["weights"], b["weights"], rtol=0, atol=0)  # yet they took the same step
+    assert not torch.equal(first[0]["weights"], first[-1]["weights"])  # and the steps did move the weights
+    payload = read_checkpoint(tmp_path / "model.pt")
+    assert payload["train"]["world_size"] == 2 and payload["train"]["step"] == 4
+    assert len(payload["data_generators"]) == 2 and not torch.equal(*payload["data_generators"])
+
+
+@pytest.mark.slow
+def test_torchrun_trains_and_resumes(tmp_path):
+    output = tmp_path / "model.pt"
+    torchrun = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2", "-m", "ikdp.train"]
+    options = ["--joints", "2", "--batch", "16", "--hidden", "16", "--blocks", "1", "--timesteps", "10"]
+    options += ["--eval-targets", "5", "--threads", "1", "--save-every", "3", "--output", str(output)]
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
+    first = subprocess.run([*torchrun, *options, "--steps", "6"], capture_output=True, text=True, env=environment)
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert first.stderr.count("TensorBoard logs:") == 1  # rank 0 alone reports
+    resumed = subprocess.run(
+        [*torchrun, "--output", str(output), "--resume", "--steps", "9"],
+        capture_output=True,
+        text=True,
+        env=environment,
+    )
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert "resuming" in resumed.stderr and "new data streams" not in resumed.stdout
+    payload = read_checkpoint(output)
+    assert payload["train"]["step"] == 9 and payload["train"]["world_size"] == 2
+    assert payload["train"]["hidden"] == 16  # read back from the checkpoint, not given again
+    assert ikdp.load(output).num_links == 2

@@ -8,15 +8,16 @@ from __future__ import annotations
 
 import torch
 
-from ikdp.kinematics import tip_position, wrap_angle
+from ikdp.arm import PlanarArm
+from ikdp.kinematics import wrap_angle
 
 
-def two_link_solutions(targets: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:
+def two_link_solutions(targets: torch.Tensor, arm: PlanarArm) -> torch.Tensor:
     """targets: (B, 2) -> headings (B, 2, 2): [:, 0] bends the elbow counter-clockwise, [:, 1] clockwise."""
-    if lengths.shape != (2,):
-        raise ValueError(f"lengths: the closed form is for two links, got shape {tuple(lengths.shape)}")
+    if arm.num_joints != 2:
+        raise ValueError(f"arm: the closed form is for two links, got {arm.num_joints}")
     targets = targets.double()
-    first, second = lengths.double().unbind()
+    first, second = torch.tensor(arm.lengths, dtype=torch.float64).unbind()
     squared_radius = (targets**2).sum(-1)
     cos_elbow = ((squared_radius - first**2 - second**2) / (2 * first * second)).clamp(-1.0, 1.0)
     elbow = torch.stack((torch.acos(cos_elbow), -torch.acos(cos_elbow)), dim=-1)  # (B, 2) relative joint angle
@@ -26,10 +27,8 @@ def two_link_solutions(targets: torch.Tensor, lengths: torch.Tensor) -> torch.Te
 
 
 def solve_two_link(
-    targets: torch.Tensor, lengths: torch.Tensor, *, num_samples: int = 2, generator: torch.Generator | None = None
+    targets: torch.Tensor, arm: PlanarArm, *, num_samples: int = 2, generator: torch.Generator | None = None
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """targets: (B, 2) -> (headings (B, K, 2), tip_error (B, K)); the K samples alternate the two elbows."""
-    solutions = two_link_solutions(targets, lengths)
-    headings = solutions[:, torch.arange(num_samples) % 2]
-    error = (tip_position(headings.double(), lengths.double()) - targets[:, None].double()).norm(dim=-1).float()
-    return headings, error
+    headings = two_link_solutions(targets, arm)[:, torch.arange(num_samples) % 2]
+    return headings, arm.tip_error(headings, targets[:, None])

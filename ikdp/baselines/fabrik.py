@@ -9,11 +9,9 @@ algorithm.
 
 from __future__ import annotations
 
-import math
-
 import torch
 
-from ikdp.kinematics import forward_kinematics, tip_position
+from ikdp.arm import PlanarArm
 
 
 def _place(anchor: torch.Tensor, toward: torch.Tensor, length: torch.Tensor) -> torch.Tensor:
@@ -25,15 +23,13 @@ def _place(anchor: torch.Tensor, toward: torch.Tensor, length: torch.Tensor) -> 
     return anchor + length * unit
 
 
-def fabrik(
-    link_headings: torch.Tensor, targets: torch.Tensor, lengths: torch.Tensor, *, iterations: int = 20
-) -> torch.Tensor:
+def fabrik(link_headings: torch.Tensor, targets: torch.Tensor, arm: PlanarArm, *, iterations: int = 20) -> torch.Tensor:
     """link_headings: (..., N) starting poses, targets: (..., 2) -> solved headings (..., N)."""
     if iterations < 0:
         raise ValueError(f"iterations: expected a non-negative integer, got {iterations}")
-    lengths = lengths.double()
+    lengths = torch.tensor(arm.lengths, dtype=torch.float64)
     targets = targets.double()
-    positions = list(forward_kinematics(link_headings.double(), lengths).unbind(-2))  # N+1 tensors (..., 2)
+    positions = list(arm.forward_kinematics(link_headings.double()).unbind(-2))  # N+1 tensors (..., 2)
     base = positions[0].clone()
     num_links = len(positions) - 1
     for _ in range(iterations):
@@ -45,20 +41,3 @@ def fabrik(
             positions[joint + 1] = _place(positions[joint], positions[joint + 1], lengths[joint])
     bones = torch.stack(positions[1:], dim=-2) - torch.stack(positions[:-1], dim=-2)  # (..., N, 2)
     return torch.atan2(bones[..., 1], bones[..., 0]).to(link_headings.dtype)
-
-
-def solve_fabrik(
-    targets: torch.Tensor,
-    lengths: torch.Tensor,
-    *,
-    restarts: int = 1,
-    iterations: int = 20,
-    generator: torch.Generator | None = None,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """targets: (B, 2) -> (headings (B, K, N), tip_error (B, K)), K = restarts from uniformly random poses."""
-    batch, num_links = targets.shape[0], lengths.shape[0]
-    starts = (torch.rand(batch, restarts, num_links, generator=generator) * 2 - 1) * math.pi
-    goals = targets[:, None].expand(-1, restarts, -1)
-    headings = fabrik(starts, goals, lengths, iterations=iterations)
-    error = (tip_position(headings.double(), lengths.double()) - goals.double()).norm(dim=-1).float()
-    return headings, error

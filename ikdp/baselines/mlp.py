@@ -14,7 +14,7 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from ikdp.kinematics import tip_position
+from ikdp.arm import PlanarArm
 from ikdp.priors import PosePrior
 
 
@@ -33,6 +33,7 @@ class MLPRegressor(nn.Module):
         super().__init__()
         self.config = config
         self.register_buffer("lengths", lengths.float().clone())
+        self.arm = PlanarArm(lengths.tolist())
         widths = [2] + [config.hidden] * config.layers
         blocks = [module for a, b in zip(widths, widths[1:], strict=False) for module in (nn.Linear(a, b), nn.SiLU())]
         self.net = nn.Sequential(*blocks, nn.Linear(config.hidden, 2 * config.num_links))
@@ -46,21 +47,20 @@ class MLPRegressor(nn.Module):
         """targets (B, 2) -> (headings (B, K, N), tip_error (B, K)); the K copies are identical."""
         output = self(targets)
         headings = torch.atan2(output[..., 1], output[..., 0])[:, None].expand(-1, num_samples, -1)
-        error = (tip_position(headings, self.lengths) - targets[:, None]).norm(dim=-1)
-        return headings, error
+        return headings, self.arm.tip_error(headings, targets[:, None])
 
 
-def train_mlp(config: MLPConfig, prior: PosePrior, lengths: torch.Tensor, *, seed: int = 0, progress: bool = True):
+def train_mlp(config: MLPConfig, prior: PosePrior, arm: PlanarArm, *, seed: int = 0, progress: bool = True):
     """Fit the regressor to poses from the prior and their FK targets; returns the model (eval mode)."""
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
-    model = MLPRegressor(config, lengths)
+    model = MLPRegressor(config, torch.tensor(arm.lengths))
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, config.steps)
     for _ in tqdm(range(config.steps), desc=f"MLP N={config.num_links}", disable=not progress, leave=False):
-        headings = prior.sample(config.batch, config.num_links, generator=generator)
+        headings = prior.sample(config.batch, arm, generator=generator)
         truth = torch.stack((torch.cos(headings), torch.sin(headings)), dim=-1)
-        loss = ((model(tip_position(headings, lengths)) - truth) ** 2).mean()
+        loss = ((model(arm.end_effector(headings)) - truth) ** 2).mean()
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()

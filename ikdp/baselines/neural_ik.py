@@ -21,7 +21,8 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from ikdp.kinematics import tip_position, wrap_angle
+from ikdp.arm import PlanarArm
+from ikdp.kinematics import wrap_angle
 from ikdp.priors import PosePrior
 
 LOG_CONCENTRATION_RANGE = (-3.0, 11.0)  # kappa up to e^11 ~ 6e4: a spread of ~0.004 rad
@@ -66,6 +67,7 @@ class NeuralIK(nn.Module):
         super().__init__()
         self.config = config
         self.register_buffer("lengths", lengths.float().clone())
+        self.arm = PlanarArm(lengths.tolist())
         inputs = 7 + config.num_links
         widths = [inputs] + [config.hidden] * config.layers
         blocks = [module for a, b in zip(widths, widths[1:], strict=False) for module in (nn.Linear(a, b), nn.SiLU())]
@@ -96,7 +98,7 @@ class NeuralIK(nn.Module):
     def log_likelihood(self, headings: torch.Tensor) -> torch.Tensor:
         """Poses (B, N) -> log p(theta | t) (B,), every joint's factor in one pass (teacher forcing)."""
         batch, num_links = headings.shape
-        targets = tip_position(headings, self.lengths)
+        targets = self.arm.end_effector(headings)
         bones = torch.stack((torch.cos(headings), torch.sin(headings)), dim=-1) * self.lengths[:, None]
         partial_tips = torch.cumsum(bones, dim=1) - bones  # (B, N, 2): the tip of theta^<n
         joint = torch.arange(num_links).expand(batch, -1)
@@ -125,21 +127,18 @@ class NeuralIK(nn.Module):
             headings.append(heading)
             partial_tip = partial_tip + self.lengths[joint] * torch.stack((torch.cos(heading), torch.sin(heading)), -1)
         poses = torch.stack(headings, dim=-1).unflatten(0, (targets.shape[0], num_samples))
-        error = (tip_position(poses, self.lengths) - targets[:, None]).norm(dim=-1)
-        return poses, error
+        return poses, self.arm.tip_error(poses, targets[:, None])
 
 
-def train_neural_ik(
-    config: NeuralIKConfig, prior: PosePrior, lengths: torch.Tensor, *, seed: int = 0, progress: bool = True
-):
+def train_neural_ik(config: NeuralIKConfig, prior: PosePrior, arm: PlanarArm, *, seed: int = 0, progress: bool = True):
     """Maximum likelihood on poses from the prior; returns the model (eval mode)."""
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
-    model = NeuralIK(config, lengths)
+    model = NeuralIK(config, torch.tensor(arm.lengths))
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, config.steps)
     for _ in tqdm(range(config.steps), desc=f"Neural IK N={config.num_links}", disable=not progress, leave=False):
-        loss = -model.log_likelihood(prior.sample(config.batch, config.num_links, generator=generator)).mean()
+        loss = -model.log_likelihood(prior.sample(config.batch, arm, generator=generator)).mean()
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)

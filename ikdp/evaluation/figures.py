@@ -33,6 +33,15 @@ def _frame(axis, reach: float, title: str):
     axis.tick_params(labelsize=7)
 
 
+def _save(figure, path: Path, *, dpi: int = 120, tight: bool = True) -> Path:
+    """Write one figure to `path` and free it (pyplot keeps every open figure alive)."""
+    if tight:
+        figure.tight_layout()
+    figure.savefig(path, dpi=dpi)
+    plt.close(figure)
+    return path
+
+
 def reverse_process(results: dict, path: Path) -> Path:
     """Paper Fig. "vis": every state of the reverse process of one target, faint (noise) to dark (final)."""
     panels = results["reverse_process"]
@@ -60,10 +69,7 @@ def reverse_process(results: dict, path: Path) -> Path:
     figure.suptitle(
         "Reverse diffusion of one target (faint: noisy states, dark: final pose; red x: target)", fontsize=10
     )
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
-    return path
+    return _save(figure, path)
 
 
 def forward_noising(results: dict, path: Path) -> Path:
@@ -98,10 +104,7 @@ def forward_noising(results: dict, path: Path) -> Path:
         "(dashed: N(0, 1))",
         fontsize=10,
     )
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
-    return path
+    return _save(figure, path)
 
 
 def training_curves(results: dict, path: Path) -> Path:
@@ -126,10 +129,7 @@ def training_curves(results: dict, path: Path) -> Path:
         axes[0].legend(fontsize=7)
     else:
         axes[0].text(0.5, 0.5, "no TensorBoard logs found", ha="center", transform=axes[0].transAxes)
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
-    return path
+    return _save(figure, path)
 
 
 def tip_error_cdf(results: dict, path: Path) -> Path:
@@ -152,10 +152,7 @@ def tip_error_cdf(results: dict, path: Path) -> Path:
         axis.set_title(f"N={joints}, K=1 per target", fontsize=10)
         axis.grid(alpha=0.3)
     axes[0, -1].legend(fontsize=6, loc="upper left")
-    figure.tight_layout()
-    figure.savefig(path, dpi=120)
-    plt.close(figure)
-    return path
+    return _save(figure, path)
 
 
 def solution_fans(results: dict, path: Path) -> Path:
@@ -166,9 +163,7 @@ def solution_fans(results: dict, path: Path) -> Path:
     if not names:
         figure = plt.figure()
         figure.text(0.5, 0.5, "no N=4 fans in this run", ha="center")
-        figure.savefig(path)
-        plt.close(figure)
-        return path
+        return _save(figure, path, tight=False)
     lengths = [1.0] * fans["num_links"]
     figure, axes = plt.subplots(len(targets), len(names), figsize=(2.1 * len(names), 2.2 * len(targets)), squeeze=False)
     for column, name in enumerate(names):
@@ -182,10 +177,7 @@ def solution_fans(results: dict, path: Path) -> Path:
             axis.set_yticks([])
         axes[0, column].title.set_fontsize(6)
     figure.suptitle("K solutions per target (red x), N=4: all samples drawn, valid or not", fontsize=10)
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-    return path
+    return _save(figure, path, dpi=110)
 
 
 def draw_all(results: dict, folder: Path) -> dict[str, str]:

@@ -8,35 +8,31 @@ exactly. The polish moves each pose by at most about `radius`, the minimum-norm 
 
 from __future__ import annotations
 
-import math
-
 import torch
 
-from ikdp.arm import PlanarArm
-from ikdp.kinematics import tip_position
+from ikdp.arm import PlanarArm, uniform_angles
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
 
 
-def targets_from_prior(prior: PosePrior, count: int, lengths: torch.Tensor, *, generator: torch.Generator):
+def targets_from_prior(prior: PosePrior, count: int, arm: PlanarArm, *, generator: torch.Generator):
     """FK of poses from the prior: (targets (B, 2), the poses that made them (B, N))."""
-    headings = prior.sample(count, lengths.shape[0], generator=generator)
-    return tip_position(headings, lengths), headings
+    headings = prior.sample(count, arm, generator=generator)
+    return arm.end_effector(headings), headings
 
 
-def targets_in_disk(count: int, lengths: torch.Tensor, *, generator: torch.Generator) -> torch.Tensor:
+def targets_in_disk(count: int, arm: PlanarArm, *, generator: torch.Generator) -> torch.Tensor:
     """Targets uniform over the reachable annulus (a disk when the links are equal): (B, 2)."""
-    outer = float(lengths.sum())
-    inner = max(0.0, 2 * float(lengths.max()) - outer)
+    inner, outer = arm.reach
     radius = torch.sqrt(inner**2 + torch.rand(count, generator=generator) * (outer**2 - inner**2))
-    angle = (torch.rand(count, generator=generator) * 2 - 1) * math.pi
+    angle = uniform_angles((count,), generator=generator)
     return torch.stack((radius * torch.cos(angle), radius * torch.sin(angle)), dim=-1)
 
 
 def rejection_reference(
     prior: PosePrior,
     targets: torch.Tensor,
-    lengths: torch.Tensor,
+    arm: PlanarArm,
     *,
     count: int,
     radius: float,
@@ -51,15 +47,15 @@ def rejection_reference(
     prior put so little mass that `max_draws` draws did not yield `count` poses are left
     out (complete is False there), and draws is the number of prior draws made.
     """
-    batch, num_links = targets.shape[0], lengths.shape[0]
+    batch, num_links = targets.shape[0], arm.num_joints
     kept = [[] for _ in range(batch)]
     have = torch.zeros(batch, dtype=torch.long)
     draws = 0
     while int(have.min()) < count:
         if draws >= max_draws:
             break
-        headings = prior.sample(chunk, num_links, generator=generator)  # (C, N)
-        tips = tip_position(headings, lengths)
+        headings = prior.sample(chunk, arm, generator=generator)  # (C, N)
+        tips = arm.end_effector(headings)
         draws += chunk
         hits = torch.cdist(targets, tips) < radius  # (B, C)
         for row in torch.nonzero(have < count).flatten().tolist():
@@ -72,4 +68,4 @@ def rejection_reference(
         return torch.empty(0, count, num_links), complete, draws
     reference = torch.stack([torch.cat(kept[row])[:count] for row in torch.nonzero(complete).flatten().tolist()])
     goals = targets[complete][:, None].expand(-1, count, -1)
-    return damped_least_squares(PlanarArm(lengths.tolist()), reference, goals, steps=polish_steps), complete, draws
+    return damped_least_squares(arm, reference, goals, steps=polish_steps), complete, draws

@@ -65,6 +65,24 @@ on {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}, in {results["wall_secon
 """
 
 
+def _variant_row(setting, published, variant: dict) -> list[str]:
+    """The columns Tables I and II share: the setting (N or T), the paper's two numbers and a variant's accuracy."""
+    distance = variant["target_distance"]
+    return [
+        str(setting),
+        _f(published[0]),
+        _f(published[1]),
+        _f(variant["angle_distance"]["mean"]),
+        _f(distance["mean"]),
+        _f(distance["mean_fraction_of_reach"]),
+        _f(distance["median"]),
+    ]
+
+
+def _variant_header(setting: str, angle: str, target: str) -> list[str]:
+    return [setting, "paper: angle dist.", "paper: target dist.", angle, target, "mean / reach", "median"]
+
+
 def table_one(results: dict) -> str:
     paper, variants, arms = results["paper"]["table1"], results["variants"], results["arms"]
     training = results["variant_training"]
@@ -74,34 +92,15 @@ def table_one(results: dict) -> str:
         shipped = arms[joints]["methods"]["IKDP ours, DDPM"]["fk_uniform"]
         published = paper.get(joints, [None, None])
         rows.append(
-            [
-                joints,
-                _f(published[0]),
-                _f(published[1]),
-                _f(variant["angle_distance"]["mean"]),
-                _f(variant["target_distance"]["mean"]),
-                _f(variant["target_distance"]["mean_fraction_of_reach"]),
-                _f(variant["target_distance"]["median"]),
+            _variant_row(joints, published, variant)
+            + [
                 _f(shipped["angle_distance"]["mean"]),
                 _f(shipped["target_distance"]["mean"]),
                 _f(shipped["target_distance"]["median"]),
             ]
         )
-    text = _table(
-        [
-            "N",
-            "paper: angle dist.",
-            "paper: target dist.",
-            "paper denoiser: angle dist. (rad)",
-            "target dist. mean (bone lengths)",
-            "mean / reach",
-            "median",
-            "our default: angle dist.",
-            "target dist. mean",
-            "median",
-        ],
-        [[str(cell) for cell in row] for row in rows],
-    )
+    header = _variant_header("N", "paper denoiser: angle dist. (rad)", "target dist. mean (bone lengths)")
+    text = _table(header + ["our default: angle dist.", "target dist. mean", "median"], rows)
     return f"""## Table I: number of joints
 
 The paper's transformer denoiser on raw theta/pi with the paper's loss, T=80,
@@ -120,31 +119,9 @@ def table_two(results: dict) -> str:
     for timesteps in results["sizes"]["table2_timesteps"]:
         variant = variants[f"n4_T{timesteps}"]
         published = paper.get(str(timesteps), [None, None])
-        rows.append(
-            [
-                str(timesteps),
-                _f(published[0]),
-                _f(published[1]),
-                _f(variant["angle_distance"]["mean"]),
-                _f(variant["target_distance"]["mean"]),
-                _f(variant["target_distance"]["mean_fraction_of_reach"]),
-                _f(variant["target_distance"]["median"]),
-                _pct(variant["target_distance"]["success@0.01"]),
-            ]
-        )
-    text = _table(
-        [
-            "T",
-            "paper: angle dist.",
-            "paper: target dist.",
-            "ours: angle dist. (rad)",
-            "target dist. mean",
-            "mean / reach",
-            "median",
-            "success @1e-2 R",
-        ],
-        rows,
-    )
+        rows.append(_variant_row(timesteps, published, variant) + [_pct(variant["target_distance"]["success@0.01"])])
+    header = _variant_header("T", "ours: angle dist. (rad)", "target dist. mean")
+    text = _table(header + ["success @1e-2 R"], rows)
     return f"""## Table II: diffusion timesteps (N=4, paper denoiser)
 
 Same protocol as Table I; each T trained for the same {results["variant_training"]["steps"]} steps

@@ -1,30 +1,37 @@
 """Models the evaluation trains for itself, cached on disk under a folder the user names.
 
-The paper-denoiser variants of Tables I and II go through ikdp's own `train`; the
-learned baselines (MLP, Neural IK) are trained here. A cache entry's file name
-holds every setting that shaped it, so a changed setting trains afresh.
+Two kinds of job: an IKDP model (the paper-denoiser variants of Tables I and II, and
+the small stand-ins of a quick run) trained by ikdp's own `train`, and a learned
+baseline (MLP, Neural IK). Each job's cache file is named by the digest of its whole
+configuration (ikdp.evaluation.cache), so a changed setting trains afresh. Missing
+jobs run in a pool of single-threaded processes: small models use a second thread
+poorly, and two processes of one thread each use both cores.
 """
 
 from __future__ import annotations
 
-import hashlib
-import os
-import subprocess
-import sys
-import time
-from dataclasses import fields, replace
+import contextlib
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import torch
 from tqdm import tqdm
 
 import ikdp
+from ikdp.arm import PlanarArm
 from ikdp.baselines.mlp import MLPConfig, mlp_from_state, mlp_state, train_mlp
 from ikdp.baselines.neural_ik import NeuralIKConfig, neural_ik_from_state, neural_ik_state, train_neural_ik
+from ikdp.evaluation.cache import config_digest
+from ikdp.evaluation.pool import single_threaded_pool
 from ikdp.priors import PosePrior
 from ikdp.train import TrainConfig, train
 
 PAPER_TRAINING = dict(denoiser="paper", representation="angle", tip_loss_weight=0.0, snr_gamma=0.0, prediction="sample")
+# the shipped paper checkpoint's settings the variants copy
+RECORDED_SETTINGS = ("denoiser", "representation", "tip_loss_weight", "snr_gamma", "prediction", "schedule", "lr")
+RECORDED_SETTINGS += ("warmup",)
+# TrainConfig fields that say where and how fast a model trains, not what it learns: left out of its cache key
+NOT_IN_KEY = ("output", "log_dir", "threads", "device", "resume", "save_every")
 
 
 def paper_training_settings(reference_checkpoint: Path | None) -> dict:
@@ -34,38 +41,50 @@ def paper_training_settings(reference_checkpoint: Path | None) -> dict:
     if reference_checkpoint is not None and reference_checkpoint.exists():
         recorded = ikdp.load(reference_checkpoint).metadata["train"]
         names = {field.name for field in fields(TrainConfig)}
-        keep = {"denoiser", "representation", "tip_loss_weight", "snr_gamma", "prediction", "schedule", "lr", "warmup"}
-        settings.update({key: value for key, value in recorded.items() if key in names and key in keep})
+        settings.update({key: value for key, value in recorded.items() if key in names and key in RECORDED_SETTINGS})
     return settings
 
 
-def ikdp_training_config(
+@dataclass(frozen=True)
+class IKDPJob:
+    """One IKDP model to train; its output path holds the digest of every setting that shapes it."""
+
+    config: TrainConfig  # the full training configuration, output and log_dir included
+
+    @property
+    def joints(self) -> int:
+        return self.config.joints
+
+    @property
+    def output(self) -> Path:
+        return Path(self.config.output)
+
+    def run(self) -> None:
+        train(self.config)
+
+
+def ikdp_job(
     cache_dir: Path,
     *,
+    label: str,
     joints: int,
     timesteps: int,
     steps: int,
     batch: int,
     seed: int,
-    threads: int,
     settings: dict,
     prior: str = "uniform",
     hidden: int | None = None,
-    tag: str = "paper",
-) -> TrainConfig:
-    """The TrainConfig of a cached IKDP model; its output file name holds every setting that shapes it."""
-    digest = hashlib.sha1(repr(sorted(settings.items())).encode()).hexdigest()[:6]  # the training settings
-    stem = f"{tag}_n{joints}_T{timesteps}_{prior}_s{steps}_b{batch}_seed{seed}_{digest}"
+) -> IKDPJob:
+    """The job of a cached IKDP model; `label` starts its file name (for people), the digest ends it."""
     overrides = dict(
         joints=joints,
         timesteps=timesteps,
         steps=steps,
         batch=batch,
         seed=seed,
-        threads=threads,
+        threads=1,
         prior=prior,
-        output=str(cache_dir / f"{stem}.pt"),
-        log_dir=str(cache_dir / "logs" / stem),
         eval_targets=0,
         save_every=10**9,
         warmup=min(settings.get("warmup", 500), max(1, steps // 10)),
@@ -73,122 +92,107 @@ def ikdp_training_config(
     config = replace(TrainConfig(), **{**settings, **overrides})
     if hidden is not None:
         config = replace(config, hidden=hidden, blocks=1)
-    return config
+    digest = config_digest({name: value for name, value in vars(config).items() if name not in NOT_IN_KEY})
+    stem = f"{label}_n{joints}_T{timesteps}_{prior}_{digest}"
+    config = replace(config, output=str(Path(cache_dir) / f"{stem}.pt"), log_dir=str(Path(cache_dir) / "logs" / stem))
+    return IKDPJob(config)
 
 
-def cached_ikdp(cache_dir: Path, **arguments) -> Path:
-    """Train (once, in this process) an IKDP model; returns its checkpoint path."""
-    config = ikdp_training_config(cache_dir, **arguments)
-    if not Path(config.output).exists():
-        train(config)  # its own tqdm bar shows the progress
-    return Path(config.output)
+@dataclass(frozen=True)
+class BaselineJob:
+    """One learned baseline to train: the model's config, the arm, the prior and the seed."""
 
+    kind: str  # "mlp" or "neural_ik"
+    model: MLPConfig | NeuralIKConfig  # the network and its training budget
+    lengths: tuple[float, ...]  # the arm's bone lengths
+    prior_kind: str  # "uniform" or "relaxed": the poses it learns from
+    relaxed_std: float  # the relaxed prior's spread (keyed even for uniform, which ignores it)
+    seed: int  # seeds the weights and the data stream
+    cache_dir: str  # folder of the cached state
 
-def _command_line(config: TrainConfig) -> list[str]:
-    command = [sys.executable, "-m", "ikdp.train"]
-    for field in fields(TrainConfig):
-        value = getattr(config, field.name)
-        flag = "--" + field.name.replace("_", "-")
-        if isinstance(value, bool):
-            command.append(flag if value else "--no-" + field.name.replace("_", "-"))
-        elif isinstance(value, tuple):
-            command += [flag, *map(str, value)]
-        elif value is not None:
-            command += [flag, str(value)]
-    return command
+    def __post_init__(self):
+        if self.kind not in ("mlp", "neural_ik"):
+            raise ValueError(f"kind: expected 'mlp' or 'neural_ik', got {self.kind!r}")
+        if self.prior_kind not in ("uniform", "relaxed"):
+            raise ValueError(f"prior_kind: baselines train on 'uniform' or 'relaxed' poses, got {self.prior_kind!r}")
 
+    @property
+    def joints(self) -> int:
+        return len(self.lengths)
 
-def run_in_parallel(jobs: list[tuple[Path, list[str]]], workers: int) -> None:
-    """Run the (output, command) jobs whose output is missing, `workers` single-threaded processes at a time.
+    @property
+    def prior(self) -> PosePrior:
+        return PosePrior(kind=self.prior_kind, relaxed_std=self.relaxed_std)
 
-    Small models use a second thread poorly; two processes of one thread each use both cores.
-    Each job's output goes to <output>.log beside its result.
-    """
-    todo = [(Path(output), command) for output, command in jobs if not Path(output).exists()]
-    running: list = []
-    progress = tqdm(total=len(todo), desc=f"training ({workers} processes)", leave=False)
-    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
-    while todo or running:
-        while todo and len(running) < max(1, workers):
-            output, command = todo.pop(0)
-            output.parent.mkdir(parents=True, exist_ok=True)
-            log = open(f"{output}.log", "w")  # noqa: SIM115 (closed when the process ends)
-            process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=environment)
-            running.append((process, output, log))
-        time.sleep(0.5)
-        for entry in list(running):
-            process, output, log = entry
-            if process.poll() is None:
-                continue
-            log.close()
-            running.remove(entry)
-            progress.update()
-            if process.returncode != 0:
-                raise RuntimeError(f"training {output} failed (exit {process.returncode}); see {output}.log")
-    progress.close()
+    @property
+    def output(self) -> Path:
+        digest = config_digest(replace(self, cache_dir=""))
+        return Path(self.cache_dir) / f"{self.kind}_n{self.joints}_{self.prior_kind}_{digest}.pt"
 
+    def run(self) -> None:
+        arm = PlanarArm(self.lengths)
+        if self.kind == "mlp":
+            state = mlp_state(train_mlp(self.model, self.prior, arm, seed=self.seed))
+        else:
+            state = neural_ik_state(train_neural_ik(self.model, self.prior, arm, seed=self.seed))
+        self.output.parent.mkdir(parents=True, exist_ok=True)
+        temporary = self.output.with_suffix(".partial")
+        torch.save(state, temporary)
+        temporary.replace(self.output)  # a killed run leaves no half-written file under the cached name
 
-def ikdp_job(config: TrainConfig) -> tuple[Path, list[str]]:
-    return Path(config.output), _command_line(replace(config, threads=1))
-
-
-def baseline_path(kind: str, cache_dir: Path, prior: PosePrior, num_links: int, steps: int, batch: int, seed: int):
-    return Path(cache_dir) / f"{kind}_n{num_links}_{prior.kind}_s{steps}_b{batch}_seed{seed}.pt"
+    def load(self):
+        """The trained model; ValueError if it has not been trained."""
+        if not self.output.exists():
+            raise ValueError(f"baseline {self.output}: not trained yet (run its job first)")
+        state = torch.load(self.output, weights_only=True)
+        return mlp_from_state(state) if self.kind == "mlp" else neural_ik_from_state(state)
 
 
 def baseline_job(
-    kind: str, cache_dir: Path, prior: PosePrior, lengths: torch.Tensor, *, steps: int, batch: int, seed: int
-):
-    """A job for run_in_parallel that trains one baseline (uniform or relaxed prior) in its own process."""
-    if prior.kind not in ("uniform", "relaxed"):
-        raise ValueError(f"prior: baselines train in a separate process for uniform or relaxed, got {prior.kind!r}")
-    output = baseline_path(kind, cache_dir, prior, lengths.shape[0], steps, batch, seed)
-    command = [
-        sys.executable,
-        "-m",
-        "ikdp.evaluation.training",
-        kind,
-        str(cache_dir),
-        prior.kind,
-        repr(prior.relaxed_std),
-    ]
-    command += [str(steps), str(batch), str(seed), *map(repr, lengths.tolist())]
-    return output, command
-
-
-def cached_baseline(
-    kind: str, cache_dir: Path, prior: PosePrior, lengths: torch.Tensor, *, steps: int, batch: int, seed: int
-):
-    """Train (once) the MLP or the Neural IK baseline on poses from `prior`; returns the model."""
-    num_links = lengths.shape[0]
-    path = baseline_path(kind, cache_dir, prior, num_links, steps, batch, seed)
-    if path.exists():
-        state = torch.load(path, weights_only=True)
-        return mlp_from_state(state) if kind == "mlp" else neural_ik_from_state(state)
-    if kind == "mlp":
-        model = train_mlp(MLPConfig(num_links=num_links, steps=steps, batch=batch), prior, lengths, seed=seed)
-        state = mlp_state(model)
-    else:
-        model = train_neural_ik(
-            NeuralIKConfig(num_links=num_links, steps=steps, batch=batch), prior, lengths, seed=seed
-        )
-        state = neural_ik_state(model)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(state, path)
-    return model
-
-
-if (
-    __name__ == "__main__"
-):  # one baseline, for run_in_parallel: kind cache prior relaxed_std steps batch seed lengths...
-    kind, cache, prior_kind, relaxed_std, steps, batch, seed, *bone_lengths = sys.argv[1:]
-    torch.set_num_threads(1)
-    cached_baseline(
-        kind,
-        Path(cache),
-        PosePrior(kind=prior_kind, relaxed_std=float(relaxed_std)),
-        torch.tensor([float(length) for length in bone_lengths]),
-        steps=int(steps),
-        batch=int(batch),
-        seed=int(seed),
+    kind: str, cache_dir: Path, prior: PosePrior, arm: PlanarArm, *, steps: int, batch: int, seed: int
+) -> BaselineJob:
+    """The job of the MLP or Neural IK baseline for `arm`, trained on poses from `prior`."""
+    config_class = MLPConfig if kind == "mlp" else NeuralIKConfig
+    return BaselineJob(
+        kind=kind,
+        model=config_class(num_links=arm.num_joints, steps=steps, batch=batch),
+        lengths=arm.lengths,
+        prior_kind=prior.kind,
+        relaxed_std=float(prior.relaxed_std),
+        seed=seed,
+        cache_dir=str(cache_dir),
     )
+
+
+Job = IKDPJob | BaselineJob
+
+
+def _run_quietly(job: Job) -> Path:
+    """Run one job in a worker process, its progress bars and prints into <output>.log."""
+    torch.set_num_threads(1)
+    job.output.parent.mkdir(parents=True, exist_ok=True)
+    with open(f"{job.output}.log", "w") as log, contextlib.redirect_stderr(log), contextlib.redirect_stdout(log):
+        job.run()
+    return job.output
+
+
+def train_missing(jobs: list[Job], *, workers: int) -> list[Path]:
+    """Run the jobs whose output is missing; returns the outputs trained.
+
+    With workers > 1 and more than one job to do, they run in a pool of `workers`
+    single-threaded processes, the longest (most joints) first; otherwise here, in turn.
+    """
+    if workers < 1:
+        raise ValueError(f"workers: expected a positive integer, got {workers}")
+    todo = sorted({job.output: job for job in jobs if not job.output.exists()}.values(), key=lambda job: -job.joints)
+    if workers == 1 or len(todo) < 2:
+        threads = torch.get_num_threads()
+        for job in tqdm(todo, desc="training", leave=False):
+            job.run()
+            torch.set_num_threads(threads)  # a training sets its own thread count; the evaluation keeps ours
+        return [job.output for job in todo]
+    with single_threaded_pool(workers) as pool:
+        futures = [pool.submit(_run_quietly, job) for job in todo]
+        for future in tqdm(futures, desc=f"training ({workers} processes)", leave=False):
+            future.result()  # a failed job raises here; its log is at <output>.log
+    return [job.output for job in todo]

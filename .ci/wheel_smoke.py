@@ -1,0 +1,91 @@
+"""Smoke test of an installed IKDP wheel, run by .ci/run from a folder outside the repository.
+
+    python wheel_smoke.py core   # the wheel without extras: load the shipped model by name, solve one target
+    python wheel_smoke.py viz    # with the [viz] extra: start the viewer on its default model, fetch its page
+
+Each check prints one line; any failure exits non-zero with the reason.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+import re
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+REPOSITORY = Path(__file__).resolve().parent.parent
+
+
+def check(condition: bool, message: str) -> None:
+    if not condition:
+        raise SystemExit(f"wheel smoke test failed: {message}")
+    print(f"ok: {message}", flush=True)
+
+
+def installed_not_cloned() -> None:
+    import ikdp
+
+    location = Path(ikdp.__file__).resolve()
+    check(REPOSITORY not in location.parents, f"ikdp is imported from the installed wheel ({location.parent})")
+
+
+def core() -> None:
+    """The library alone: no viewer, no plotting, the shipped models inside the package."""
+    for extra in ("viser", "matplotlib"):
+        check(importlib.util.find_spec(extra) is None, f"{extra} is not installed (the wheel without extras)")
+    installed_not_cloned()
+    import torch
+
+    import ikdp
+    from ikdp.shipped import DEFAULT_MODEL, shipped_dir
+
+    check(shipped_dir().parent == Path(ikdp.__file__).resolve().parent, f"shipped models in {shipped_dir()}")
+    solver = ikdp.load(DEFAULT_MODEL)
+    result = solver.solve([[1.5, 2.0]], num_samples=4, refine_steps=5, generator=torch.Generator().manual_seed(0))
+    best = float(result.tip_error.min())
+    check(best < 1e-2, f"ikdp.load({DEFAULT_MODEL!r}) solves one target (best tip error {best:.2e})")
+    wheel_version = importlib.metadata.version("ikdp")
+    check(ikdp.__version__ == wheel_version, f"ikdp.__version__ {ikdp.__version__} is the wheel's version")
+
+
+def viz(timeout: float = 180.0) -> None:
+    """`python -m ikdp_viz` with no arguments: the default model, a URL printed, the page served over HTTP."""
+    installed_not_cloned()
+    viewer = subprocess.Popen(
+        [sys.executable, "-m", "ikdp_viz"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+        deadline = time.monotonic() + timeout
+        url, seen = None, []
+        while url is None and time.monotonic() < deadline:
+            line = viewer.stdout.readline()
+            if not line:  # the viewer exited before printing its address
+                break
+            seen.append(line.rstrip())
+            match = re.search(r"open (http://\S+)", line)
+            url = match.group(1) if match else None
+        check(url is not None, f"the viewer printed its address ({' | '.join(seen[-5:])})")
+        with urllib.request.urlopen(url, timeout=60) as response:
+            page = response.read().decode("utf-8", errors="replace")
+            status = response.status
+        check(status == 200 and "<html" in page.lower(), f"GET {url} serves the viewer's page ({len(page)} bytes)")
+    finally:
+        viewer.send_signal(signal.SIGINT)  # what Ctrl-C sends: the viewer stops cleanly
+        try:
+            viewer.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+            viewer.wait()
+    check(viewer.returncode in (0, 130, -signal.SIGINT), f"the viewer stopped on Ctrl-C (exit {viewer.returncode})")
+
+
+if __name__ == "__main__":
+    checks = {"core": core, "viz": viz}
+    if len(sys.argv) != 2 or sys.argv[1] not in checks:
+        raise SystemExit(f"usage: python {Path(__file__).name} {{{'|'.join(checks)}}}")
+    checks[sys.argv[1]]()
