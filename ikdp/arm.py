@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from ikdp.kinematics import (
@@ -37,6 +38,8 @@ def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
     target and two numbers, and silently guessing hides bugs in the caller.
     """
     try:
+        if not isinstance(targets, torch.Tensor):
+            targets = np.asarray(targets, dtype=np.float32)  # a list of arrays converts fast this way
         tensor = torch.as_tensor(targets, dtype=torch.float32)
     except (TypeError, ValueError, RuntimeError) as error:
         expected = f"targets: expected numbers of shape (B, {target_dim})"

@@ -1,0 +1,204 @@
+"""IKDP on a real robot (the Franka Panda): accuracy, refinement, diversity and speed, beside baselines.
+
+    OMP_NUM_THREADS=1 python benchmarks/robot_benchmark.py --checkpoint checkpoints/ikdp_panda.pt
+
+On `targets` held-out pose targets (FK of joint values uniform within the limits, fixed seed):
+1. the raw sampler, K=1: position (mm) and rotation (degrees) error, medians and means, limit violations;
+2. K=16 + `refine_steps` limit-aware damped-least-squares steps: share of targets with a solution within
+   1 mm and 1 degree, valid solutions per target, time per target; beside 16 uniform random starts with
+   the same steps and with more, and pytorch_kinematics' PseudoInverseIK (16 retries, 30 iterations,
+   early stopping), all in the same run, one torch thread;
+3. diversity: mean pairwise joint distance (radians) of a target's valid solutions;
+4. the viewer's path for one target, K=16 (sampler + trajectory + x̂0 estimates + refinement).
+Prints tables and writes benchmarks/results/robot_panda.json.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import torch
+import tyro
+
+import ikdp
+from ikdp.refine import damped_least_squares
+
+RESULTS = Path(__file__).resolve().parent / "results" / "robot_panda.json"
+PUBLISHED = {  # mean position / rotation error of learned Panda IK, as published
+    "IKFlow (Ames et al. 2022)": (6.66, 2.03),
+    "GraphDiff-IK": (3.47, None),
+}
+
+
+@dataclass(frozen=True)
+class RobotBenchmarkConfig:
+    checkpoint: str = "ikdp_panda"  # a path or a shipped model's name
+    targets: int = 1000  # held-out pose targets
+    samples: int = 16  # K solutions per target
+    refine_steps: int = 5  # limit-aware DLS steps after sampling
+    samplers: tuple[str, ...] = ("ddpm", "dpmpp2m:10", "ddim:10")  # name[:steps] measured raw
+    pipeline_sampler: str = "dpmpp2m:10"  # the sampler of the K=16 + refinement pipeline
+    random_start_steps: tuple[int, ...] = (5, 10, 20, 50)  # DLS steps from 16 uniform random starts
+    pk_retries: int = 16  # PseudoInverseIK starts per target
+    pk_iterations: int = 30  # PseudoInverseIK iterations
+    repeats: int = 3  # timing repeats (median quoted)
+    latency_repeats: int = 15  # one-target viewer-path repeats
+    seed: int = 0
+    output: Path = field(default=RESULTS)
+
+
+def parse_sampler(text: str) -> tuple[str, int | None]:
+    name, _, steps = text.partition(":")
+    return name, int(steps) if steps else None
+
+
+def median_seconds(run, repeats: int) -> tuple[float, object]:
+    result, seconds = None, []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        result = run()
+        seconds.append(time.perf_counter() - started)
+    return statistics.median(seconds), result
+
+
+def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
+    """joints (B, K, J) for targets (B, 7): success within 1 mm and 1 degree, and diversity of the valid ones."""
+    goals = targets[:, None].expand(-1, joints.shape[1], -1)
+    valid = (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
+    pairwise = torch.cdist(joints.double(), joints.double())  # (B, K, K)
+    pair_valid = valid[:, :, None] & valid[:, None, :] & ~torch.eye(joints.shape[1], dtype=torch.bool)
+    per_target = (pairwise * pair_valid).sum((1, 2)) / pair_valid.sum((1, 2)).clamp(min=1)
+    several = pair_valid.sum((1, 2)) > 0
+    return {
+        "success_share": float(valid.any(1).double().mean()),
+        "valid_per_target": float(valid.sum(1).double().mean()),
+        "diversity_rad": float(per_target[several].mean()) if several.any() else float("nan"),
+        "limit_violations": int(arm.limit_violations(joints).sum()),
+    }
+
+
+def run_pytorch_kinematics(arm, targets: torch.Tensor, config: RobotBenchmarkConfig) -> dict:
+    import pytorch_kinematics as pk
+
+    chain = pk.build_serial_chain_from_urdf(Path(arm.urdf_path).read_bytes(), arm.ee_link)
+    limits = arm.joint_limits
+    retry = torch.rand(config.pk_retries, arm.num_joints, generator=torch.Generator().manual_seed(config.seed + 9))
+    retry = limits[:, 0] + retry * (limits[:, 1] - limits[:, 0])
+    solver = pk.PseudoInverseIK(
+        chain,
+        retry_configs=retry,
+        joint_limits=limits,
+        max_iterations=config.pk_iterations,
+        pos_tolerance=1e-3,
+        rot_tolerance=math.radians(1),
+        early_stopping_any_converged=True,
+    )
+    goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:])  # pk's quaternions are (w, x, y, z) too
+    seconds, solution = median_seconds(lambda: solver.solve(goal), config.repeats)
+    joints = solution.solutions.detach().float()  # (B, R, J)
+    return {"seconds_per_target": seconds / len(targets), **verdict(arm, joints, targets)}
+
+
+def main(config: RobotBenchmarkConfig) -> dict:
+    torch.set_num_threads(1)
+    solver = ikdp.load(config.checkpoint)
+    arm = solver.arm
+    targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
+    results: dict = {"config": {**asdict(config), "output": str(config.output)}, "checkpoint": solver.metadata["path"]}
+
+    raw = {}
+    for text in config.samplers:
+        name, steps = parse_sampler(text)
+        seeded = torch.Generator().manual_seed(1)
+        out = solver.solve(targets, num_samples=1, sampler=name, steps=steps, generator=seeded)
+        position, rotation = out.raw_tip_error[:, 0] * 1000, torch.rad2deg(out.rotation_error[:, 0])
+        raw[text] = {
+            "position_mm_median": float(position.median()),
+            "position_mm_mean": float(position.mean()),
+            "rotation_deg_median": float(rotation.median()),
+            "rotation_deg_mean": float(rotation.mean()),
+            "limit_violations": int(arm.limit_violations(out.raw_angles).sum()),
+        }
+    results["raw_k1"] = raw
+
+    pipelines = {}
+    name, steps = parse_sampler(config.pipeline_sampler)
+
+    def ikdp_pipeline():
+        return solver.solve(
+            targets,
+            num_samples=config.samples,
+            sampler=name,
+            steps=steps,
+            refine_steps=config.refine_steps,
+            generator=torch.Generator().manual_seed(2),
+        )
+
+    seconds, out = median_seconds(ikdp_pipeline, config.repeats)
+    label = f"IKDP {config.pipeline_sampler}, K={config.samples} + {config.refine_steps} DLS steps"
+    pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, out.angles, targets)}
+    goals = targets[:, None].expand(-1, config.samples, -1)
+    for dls_steps in config.random_start_steps:
+        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
+        starts = starts.unflatten(0, (len(targets), config.samples))
+        seconds, joints = median_seconds(
+            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(arm, starts, goals, steps=dls_steps),
+            config.repeats,
+        )
+        label = f"{config.samples} uniform random starts + {dls_steps} DLS steps"
+        pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, joints, targets)}
+    try:
+        label = f"pytorch_kinematics PseudoInverseIK, {config.pk_retries} retries, {config.pk_iterations} iterations"
+        pipelines[label] = run_pytorch_kinematics(arm, targets, config)
+    except ImportError:
+        pass
+    results["pipelines"] = pipelines
+
+    one = targets[:1]
+    latency = {}
+    for text in (config.pipeline_sampler, "ddpm"):
+        name, steps = parse_sampler(text)
+        seconds, _ = median_seconds(
+            lambda name=name, steps=steps: solver.solve(
+                one,
+                num_samples=config.samples,
+                sampler=name,
+                steps=steps,
+                refine_steps=config.refine_steps,
+                return_trajectory=True,
+                return_estimates=True,
+            ),
+            config.latency_repeats,
+        )
+        latency[text] = seconds * 1000
+    results["viewer_path_ms"] = latency
+    results["published_mean_mm_deg"] = PUBLISHED
+
+    print(f"raw sampler, K=1, {config.targets} pose targets")
+    print("| sampler | position mm median / mean | rotation deg median / mean | limit violations |")
+    print("|---|---|---|---|")
+    for text, row in raw.items():
+        print(
+            f"| {text} | {row['position_mm_median']:.2f} / {row['position_mm_mean']:.2f} "
+            f"| {row['rotation_deg_median']:.2f} / {row['rotation_deg_mean']:.2f} | {row['limit_violations']} |"
+        )
+    print("\n| pipeline | within 1 mm and 1 deg | valid of K | diversity (rad) | ms per target | limit violations |")
+    print("|---|---|---|---|---|---|")
+    for label, row in pipelines.items():
+        print(
+            f"| {label} | {100 * row['success_share']:.1f} % | {row['valid_per_target']:.1f} "
+            f"| {row['diversity_rad']:.2f} | {1000 * row['seconds_per_target']:.2f} | {row['limit_violations']} |"
+        )
+    print("\nviewer path, one target, K=16 (+ trajectory, estimates, refinement):", latency)
+    config.output.parent.mkdir(parents=True, exist_ok=True)
+    config.output.write_text(json.dumps(results, indent=2))
+    return results
+
+
+if __name__ == "__main__":
+    main(tyro.cli(RobotBenchmarkConfig, description=__doc__.splitlines()[0]))
