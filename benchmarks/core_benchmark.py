@@ -36,10 +36,10 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import torch
+from ikdp._cli import parse_into
 
 import ikdp
 from benchmarks.pk_chain import PkSettings
-from ikdp._cli import parse_into
 from ikdp.arm import uniform_angles
 from ikdp.refine import damped_least_squares
 

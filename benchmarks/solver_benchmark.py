@@ -49,10 +49,10 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import torch
+from ikdp._cli import parse_into
 
 import ikdp
 from benchmarks.pk_chain import PkSettings
-from ikdp._cli import parse_into
 from ikdp.arm import PlanarArm, uniform_angles
 from ikdp.baselines.random_starts import dls_polish, solve_from_random_starts
 from ikdp.evaluation.machine import cpu_model
