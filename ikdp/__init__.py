@@ -1,5 +1,7 @@
-"""IKDP: inverse kinematics of a planar N-link arm by a conditional diffusion model."""
+"""IKDP: inverse kinematics by a conditional diffusion model, for a planar N-link arm or a robot from a URDF."""
 
+from ikdp.arm import PlanarArm
+from ikdp.chain_arm import ChainArm
 from ikdp.checkpoint import CheckpointError
 from ikdp.kinematics import (
     absolute_to_relative,
@@ -9,16 +11,23 @@ from ikdp.kinematics import (
     tip_position,
     wrap_angle,
 )
+from ikdp.robots import load_robot, robot_names
+from ikdp.samplers import sampler_names
 from ikdp.solver import Solver, SolveResult, load
 
 __all__ = [
+    "ChainArm",
     "CheckpointError",
+    "PlanarArm",
     "SolveResult",
     "Solver",
     "absolute_to_relative",
     "forward_kinematics",
     "load",
+    "load_robot",
     "relative_to_absolute",
+    "robot_names",
+    "sampler_names",
     "tip_jacobian",
     "tip_position",
     "wrap_angle",
