@@ -10,6 +10,7 @@ from today's default is spelled out, so the command stays true as defaults move.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from dataclasses import fields
 
@@ -42,9 +43,31 @@ def training_command(train: dict) -> str:
     return " ".join(parts)
 
 
+def arm_text(model: dict, train: dict) -> str:
+    """'planar, 4 links' or 'panda (panda_hand), 7 joints, pose targets'."""
+    arm = model.get("arm") or {"kind": "planar"}  # a planar model may store only its lengths
+    if arm["kind"] == "planar":
+        return f"planar, {len(model['lengths'])} links"
+    name = train.get("robot") or train.get("urdf") or "chain"
+    return f"{name} ({arm.get('ee_link', '?')}), {len(arm['joint_names'])} joints, {arm.get('target', 'pose')} targets"
+
+
+def accuracy_text(model: dict, metrics: dict) -> str:
+    """The median error at save: in bone lengths for a planar arm, mm (and degrees) for a chain."""
+    median = metrics.get("tip_error_median")
+    if median is None:
+        return "..."
+    where = f"({metrics.get('eval_targets')} targets, {metrics.get('sampler')})"
+    if (model.get("arm") or {"kind": "planar"})["kind"] == "planar":
+        return f"{median:.4f} {where}"
+    rotation = metrics.get("rotation_error_median")
+    rotation_text = f" / {math.degrees(rotation):.1f}°" if rotation is not None else ""
+    return f"{median * 1000:.1f} mm{rotation_text} {where}"
+
+
 def describe(paths: list[str]) -> str:
     rows = [
-        "| checkpoint | N | T | denoiser | representation | prior | steps | train time | median tip error at save |",
+        "| checkpoint | arm | T | denoiser | representation | prior | steps | train time | median error at save |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     commands = []
@@ -52,14 +75,10 @@ def describe(paths: list[str]) -> str:
         payload = read_checkpoint(path)
         model, train, metrics = payload["model"], payload["train"], payload["metrics"]
         minutes = float(train.get("seconds", 0)) / 60
-        median = metrics.get("tip_error_median")
         rows.append(
-            f"| `{path}` | {len(model['lengths'])} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
+            f"| `{path}` | {arm_text(model, train)} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
             f"| {model['representation']} | {payload['prior']['kind']} | {train.get('step')} "
-            f"| {minutes:.1f} min ({train.get('threads')} thread) "
-            f"| {median:.4f} ({metrics.get('eval_targets')} targets, {metrics.get('sampler')}) |"
-            if median is not None
-            else f"| `{path}` | ... |"
+            f"| {minutes:.1f} min ({train.get('threads')} thread) | {accuracy_text(model, metrics)} |"
         )
         commands.append(f"- `{path}`: `{training_command(train)}`")
     return "\n".join(rows) + "\n\nCommands:\n\n" + "\n".join(commands) + "\n"

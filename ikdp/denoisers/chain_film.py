@@ -18,7 +18,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ikdp.denoisers.config import DenoiserConfig
+from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.refine import dls_step
 from ikdp.representation import AngleRepresentation
@@ -49,6 +49,7 @@ class ChainFiLMDenoiser(nn.Module):
         )
         self.register_buffer("kinematic_mask", kinematic_mask, persistent=False)
         self.register_buffer("half_range", representation.half_range.clone(), persistent=False)
+        require_feature_width("chain_film", hidden, feature_dim)
         self.input = nn.Linear(feature_dim, hidden)
         self.condition_net = nn.Sequential(
             nn.Linear(config.time_dim + arm.condition_dim, hidden),

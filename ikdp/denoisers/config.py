@@ -18,3 +18,9 @@ class DenoiserConfig:
     heads: int = 4  # paper: attention heads
     layers: int = 2  # paper: layers in the encoder and in the decoder
     mlp_hidden: int = 256  # paper: width of the MLP between encoder and decoder
+
+
+def require_feature_width(kind: str, hidden: int, feature_dim: int) -> None:
+    """The FiLM denoisers carry each input feature's scale in one hidden-wide row of the condition: refuse narrower."""
+    if hidden < feature_dim:
+        raise ValueError(f"denoiser {kind!r}: hidden ({hidden}) must be at least its {feature_dim} input features")

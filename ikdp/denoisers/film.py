@@ -23,7 +23,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ikdp.denoisers.config import DenoiserConfig
+from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.refine import planar_dls_step
 from ikdp.representation import AngleRepresentation
@@ -48,6 +48,7 @@ class FiLMDenoiser(nn.Module):
         self.register_buffer("feature_scale", scale, persistent=False)
         kinematic_mask = torch.cat((torch.ones(dim, dtype=torch.bool), torch.zeros(2 + num_links, dtype=torch.bool)))
         self.register_buffer("kinematic_mask", kinematic_mask, persistent=False)
+        require_feature_width("film", hidden, feature_dim)
         self.input = nn.Linear(feature_dim, hidden)
         self.condition_net = nn.Sequential(
             nn.Linear(config.time_dim + 2, hidden),
