@@ -53,6 +53,7 @@ class JointSpaceNodes:
         self.labels: list = []
         self.square: Square | None = None
         self._solutions_key: tuple | None = None  # what the solutions node shows: (solve, joints)
+        self._labels_key: tuple[int, int] | None = None  # the joints the labels name
         self.last_field = None  # the field drawn last, for tests and scripts
 
     @property
@@ -90,9 +91,8 @@ class JointSpaceNodes:
         if self._solutions_key != (id(solved), joints):
             self.solutions.points = self._solution_segments(view, joints, SOLUTION_LIFT * reach)
             self._solutions_key = (id(solved), joints)
-        first, second = (self.controls.first.options[index] for index in joints)
-        self.labels[0].text, self.labels[1].text = first, second
-        self.labels[2].text = f"joint space at t = {int(view.labels[state])}: arrows x_t → x̂0"
+        if self._labels_key != joints:
+            self._write_labels(joints)
 
     # -------------------------------------------------------------- building and removing
 
@@ -136,23 +136,30 @@ class JointSpaceNodes:
             point_shape="circle", precision="float32",
         )  # fmt: skip
         self._solutions_key = None
-        label = dict(font_screen_scale=0.9)
-        self.labels = [
-            scene.add_label("/joint_space/x_label", "θ1", position=(cx, cy - 1.06 * half, 0.0), anchor="top-center",
-                            **label),
-            scene.add_label("/joint_space/y_label", "θ2", position=(cx - 1.04 * half, cy, 0.0),
-                            anchor="center-right", **label),
-            scene.add_label("/joint_space/title", "", position=(cx, cy + 1.04 * half, 0.0), anchor="bottom-center",
-                            **label),
-        ]  # fmt: skip
         self._move_cameras(camera_over_both(reach))
+
+    def _write_labels(self, joints: tuple[int, int]) -> None:
+        """The axes' names and the title. Re-created, never edited: viser 1.1's page stops drawing a label
+        whose text is changed after it is first drawn."""
+        for handle in self.labels:
+            handle.remove()
+        first, second = (self.controls.first.options[index] for index in joints)
+        (cx, cy), half = self.square.centre, self.square.side / 2
+        add = self.server.scene.add_label
+        self.labels = [
+            add("/joint_space/x_label", first, position=(cx, cy - 1.06 * half, 0.0), anchor="top-center"),
+            add("/joint_space/y_label", second, position=(cx - 1.04 * half, cy, 0.0), anchor="center-right"),
+            add("/joint_space/title", f"{first}, {second} (headings): arrows x_t → x̂0 at the step shown",
+                position=(cx, cy + 1.04 * half, 0.0), anchor="bottom-center"),
+        ]  # fmt: skip
+        self._labels_key = joints
 
     def _remove(self) -> None:
         for handle in (self.frame, self.arrows, self.solutions, self.samples, self.backing, *self.labels):
             if handle is not None:
                 handle.remove()
         self.frame = self.arrows = self.solutions = self.samples = self.backing = None
-        self.labels, self.square, self._solutions_key = [], None, None
+        self.labels, self.square, self._solutions_key, self._labels_key = [], None, None, None
 
     def _move_cameras(self, camera: Camera) -> None:
         """Frame what is drawn now, in every open tab and for tabs opened later."""

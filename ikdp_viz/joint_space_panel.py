@@ -36,7 +36,8 @@ class JointSpaceControls:
             self.first.options, self.second.options = options, options
             self.first.value, self.second.value = options[0], options[1]
         for dropdown in (self.first, self.second):
-            dropdown.disabled = num_joints <= 2
+            if dropdown.disabled != (num_joints <= 2):  # called with every frame: write only a change
+                dropdown.disabled = num_joints <= 2
 
 
 def build_joint_space_controls(gui: viser.GuiApi) -> JointSpaceControls:
