@@ -139,8 +139,10 @@ class JointSpaceNodes:
         self._move_cameras(camera_over_both(reach))
 
     def _write_labels(self, joints: tuple[int, int]) -> None:
-        """The axes' names and the title. Re-created, never edited: viser 1.1's page stops drawing a label
-        whose text is changed after it is first drawn."""
+        """The axes' names and the title, re-created only when the joints change (not edited every frame).
+
+        In headless chromium (software WebGL) these labels were drawn in some screenshots and not in
+        others; the cause is not established, the rest of the view does not depend on them."""
         for handle in self.labels:
             handle.remove()
         first, second = (self.controls.first.options[index] for index in joints)
