@@ -13,6 +13,8 @@ import numpy as np
 import viser
 import viser.uplot
 
+from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
+
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
 DEFAULT_STEPS = 20  # for samplers that can skip steps (ikdp.samplers: supports_steps)
@@ -68,6 +70,7 @@ class Panel:
     export_button: viser.GuiButtonHandle
     checkpoint: viser.GuiDropdownHandle
     model_text: viser.GuiMarkdownHandle
+    joint_space: JointSpaceControls
 
 
 def build_panel(
@@ -105,6 +108,7 @@ def build_panel(
             hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
         )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+    joint_space = build_joint_space_controls(gui)
     with gui.add_folder("Sampling"):
         samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
         highlight = gui.add_dropdown(
@@ -151,5 +155,5 @@ def build_panel(
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
-        readout_text, plot, export_button, checkpoint, model_markdown,
+        readout_text, plot, export_button, checkpoint, model_markdown, joint_space,
     )  # fmt: skip

@@ -25,6 +25,7 @@ import viser
 
 import ikdp
 from ikdp_viz import meshes, readouts
+from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.panel import Panel, highlight_index, plot_scales
 from ikdp_viz.scene import (
     HIGHLIGHT_LIFT,
@@ -176,6 +177,7 @@ class SceneWriter:
         self.trail = self.links = self.joints = self.tips = None
         self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self._static_nodes: list = []
+        self.joint_space = JointSpaceNodes(server, panel.joint_space, camera_fit)  # the torus beside the arm
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
         self._build_static_scene()  # before any thread exists: the app's constructor is the only writer yet
@@ -364,6 +366,7 @@ class SceneWriter:
         self.animation = None
         self.solver, self.solved, self.target = message.solver, None, message.target
         self._remove_arm_nodes()
+        self.joint_space.reset()
         self._build_static_scene()
         num_timesteps = message.solver.timesteps
         self.panel.timestep.max = num_timesteps
@@ -428,6 +431,7 @@ class SceneWriter:
             final_shown = state == last and view.refined
             self.refined_lines.visible = final_shown
             self.refined_tips.visible = final_shown
+            self.joint_space.draw(self.solver, solved, state, colors, highlight)
             self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
             self.panel.plot.data = error_curves(view, highlight, state)
             self._write_readouts()

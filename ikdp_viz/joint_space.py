@@ -1,0 +1,166 @@
+"""The joint space of a planar arm: the exact 2-link solution set, angles on the torus, the denoiser's field.
+
+A pose is the model's own coordinates, the absolute link headings (ikdp.arm.PlanarArm),
+so two of them span a torus: every angle here is wrapped into [-pi, pi), and the
+shortest way from one angle to another is taken across the seam when that is shorter.
+
+The field is what the denoiser does to a grid of poses at one timestep t: each grid
+pose enters as x_t (its own encoding, `representation.encode`), the denoiser and the
+schedule give x̂0 exactly as in the sampling loop (ikdp.sampling), and the arrow is
+the wrapped difference x̂0 - x_t in headings. No viser here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+import ikdp
+from ikdp.arm import PlanarArm
+
+BOUNDARY_TOLERANCE = 1e-9  # |cos q2| within this of 1: the target is on the reach boundary, one solution
+CURVE_POINTS = 256  # samples of a solution curve
+FIELD_CACHE_SIZE = 256  # fields kept; scrubbing back and forth recomputes none of them
+
+
+def wrap_to_square(angles) -> np.ndarray:
+    """Angles (any shape) wrapped into [-pi, pi): the joint-space square's range, pi and -pi one point."""
+    wrapped = np.remainder(np.asarray(angles, dtype=np.float64) + math.pi, 2 * math.pi) - math.pi
+    return np.where(wrapped >= math.pi, -math.pi, wrapped)  # remainder can round up to exactly 2 pi
+
+
+def shortest_difference(start, end) -> np.ndarray:
+    """end - start on the circle, wrapped into [-pi, pi): the arrow that does not go round the long way."""
+    return wrap_to_square(np.asarray(end, dtype=np.float64) - np.asarray(start, dtype=np.float64))
+
+
+@dataclass(frozen=True)
+class SolutionSet:
+    """Every pose of a 2-link arm whose tip is on the target, as absolute headings (theta1, theta2)."""
+
+    points: np.ndarray  # (P, 2) isolated solutions: 2 (elbow up and down), 1 (on the reach boundary) or 0
+    curve: np.ndarray | None  # (C, 2) a closed curve of solutions, when the target sits on a circle of them
+
+
+def two_link_solutions(lengths, target) -> SolutionSet:
+    """The exact inverse kinematics of a 2-link planar arm for the target (2,), in headings wrapped to [-pi, pi).
+
+    A target out of reach is replaced by the nearest reachable point, as the solver conditions on it.
+    With l1 = l2 and the target on the base the solution set is the curve theta2 = theta1 + pi
+    (the elbow folded back, any heading of the first link).
+    """
+    lengths = tuple(float(length) for length in lengths)
+    if len(lengths) != 2:
+        raise ValueError(f"lengths: expected the two bone lengths of a 2-link arm, got {lengths}")
+    l1, l2 = lengths
+    point = torch.as_tensor(np.asarray(target, dtype=np.float64).reshape(1, 2))
+    x, y = PlanarArm(lengths).clamp_to_workspace(point)[0].tolist()
+    radius = math.hypot(x, y)
+    if radius <= BOUNDARY_TOLERANCE * (l1 + l2) and math.isclose(l1, l2):
+        first = np.linspace(-math.pi, math.pi, CURVE_POINTS, endpoint=False)
+        return SolutionSet(np.zeros((0, 2)), wrap_to_square(np.stack((first, first + math.pi), axis=-1)))
+    # law of cosines for the relative elbow angle q2 = theta2 - theta1
+    cos_elbow = (radius**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    if abs(cos_elbow) >= 1 - BOUNDARY_TOLERANCE:
+        elbows = [0.0 if cos_elbow > 0 else math.pi]  # stretched (outer boundary) or folded (inner)
+    else:
+        elbow = math.acos(cos_elbow)
+        elbows = [elbow, -elbow]
+    rows = []
+    for elbow in elbows:
+        first = math.atan2(y, x) - math.atan2(l2 * math.sin(elbow), l1 + l2 * math.cos(elbow))
+        rows.append((first, first + elbow))
+    return SolutionSet(wrap_to_square(np.array(rows)), None)
+
+
+def torus_grid(count: int) -> np.ndarray:
+    """(count * count, 2) cell centres of a count x count grid over [-pi, pi)^2, first angle varying fastest."""
+    if not isinstance(count, int) or count < 1:
+        raise ValueError(f"count: expected a positive integer, got {count!r}")
+    centres = -math.pi + (np.arange(count) + 0.5) * (2 * math.pi / count)
+    second, first = np.meshgrid(centres, centres, indexing="ij")
+    return np.stack((first.reshape(-1), second.reshape(-1)), axis=-1)
+
+
+def grid_poses(grid: np.ndarray, joints: tuple[int, int], held) -> np.ndarray:
+    """Full poses (M, N) for grid points (M, 2) over `joints`: every other joint held at `held` (N,)."""
+    held = np.asarray(held, dtype=np.float64)
+    first, second = joints
+    if first == second or not (0 <= first < len(held) and 0 <= second < len(held)):
+        raise ValueError(f"joints: expected two different joints of 0..{len(held) - 1}, got {joints}")
+    poses = np.repeat(held[None], len(grid), axis=0)
+    poses[:, first], poses[:, second] = grid[:, 0], grid[:, 1]
+    return poses
+
+
+@torch.inference_mode()
+def clean_estimates_of_vectors(solver: ikdp.Solver, x: torch.Tensor, timestep: int, target) -> torch.Tensor:
+    """The denoiser's x̂0 (M, N) in headings for diffused vectors x_t (M, D) at the 0-based `timestep`, target (2,).
+
+    One batched call, the same composition as a step of the sampling loop (ikdp.sampling): the
+    target the solver conditions on (clamped into the workspace), the denoiser's output, and the
+    schedule's `predict_clean` for what the model predicts; decoded to headings (decoding wraps and
+    normalises, so the loop's projection onto the manifold changes nothing here).
+    """
+    model = solver.model
+    if not 0 <= timestep < solver.timesteps:
+        raise ValueError(f"timestep: expected 0 <= t < {solver.timesteps}, got {timestep}")
+    rows = x.shape[0]
+    targets = solver.arm.validate_targets(np.asarray(target, dtype=np.float64).reshape(1, -1)).to(solver.device)
+    targets = solver.arm.clamp_to_workspace(targets).expand(rows, -1)
+    t = torch.full((rows,), timestep, dtype=torch.long, device=solver.device)
+    output = model.denoiser(x, t, targets)
+    clean = model.schedule.predict_clean(output, timestep, x, model.config.prediction)
+    return model.representation.decode(clean)
+
+
+def clean_estimates(solver: ikdp.Solver, poses, timestep: int, target) -> np.ndarray:
+    """x̂0 (M, N) for every pose (M, N) of headings taken as x_t, in its own encoding, at `timestep`."""
+    headings = torch.as_tensor(np.asarray(poses), dtype=torch.float32, device=solver.device)
+    x = solver.model.representation.encode(headings)  # (M, D)
+    return clean_estimates_of_vectors(solver, x, timestep, target).double().cpu().numpy()
+
+
+@dataclass(frozen=True)
+class Field:
+    """The denoiser's arrows on a grid over two joints at one timestep."""
+
+    starts: np.ndarray  # (M, 2) grid poses x_t on the two joints, in [-pi, pi)
+    arrows: np.ndarray  # (M, 2) the shortest x̂0 - x_t on the two joints, each in [-pi, pi)
+    timestep: int  # the 0-based timestep the denoiser was called at
+
+
+class FieldCache:
+    """Fields by (model, target, t, joints, held pose, grid): scrubbing the slider back and forth costs nothing."""
+
+    def __init__(self, size: int = FIELD_CACHE_SIZE):
+        self._fields: OrderedDict[tuple, Field] = OrderedDict()
+        self._size = size
+
+    def field(self, solver: ikdp.Solver, target, timestep: int, joints: tuple[int, int], held, count: int) -> Field:
+        """The field at `timestep` on a count x count grid over `joints`, the other joints at `held` (N,)."""
+        held = np.asarray(held, dtype=np.float64)
+        free = np.ones(len(held), dtype=bool)
+        free[list(joints)] = False
+        key = (
+            id(solver), tuple(np.asarray(target, dtype=np.float64).round(12)), int(timestep), tuple(joints),
+            tuple(held[free].round(12)), count,
+        )  # fmt: skip
+        if key in self._fields:
+            self._fields.move_to_end(key)
+            return self._fields[key]
+        grid = torus_grid(count)
+        poses = grid_poses(grid, joints, held)
+        estimates = clean_estimates(solver, poses, int(timestep), target)[:, list(joints)]
+        field = Field(grid, shortest_difference(grid, estimates), int(timestep))
+        self._fields[key] = field
+        while len(self._fields) > self._size:
+            self._fields.popitem(last=False)
+        return field
+
+    def clear(self) -> None:
+        self._fields.clear()

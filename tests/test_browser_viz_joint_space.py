@@ -1,0 +1,67 @@
+"""The joint-space view in a real browser: turned on, played, scrubbed, on a curve of solutions; no page error.
+
+Every page error and every console message of type "error" is collected; none may appear.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from viz_helpers import CHROMIUM_ARGS, canvas_box, chromium_or_skip, read_png, running_app, settle
+
+import ikdp
+from ikdp.shipped import list_shipped, shipped_checkpoint
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+TIMEOUT = 60.0  # seconds, for anything the browser has to render
+SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    executable = chromium_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+@pytest.mark.parametrize("name", ["ikdp_n2", "ikdp_n4"])
+def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, name):
+    if name not in {path.stem for path in list_shipped()}:
+        pytest.skip(f"the shipped {name} is not there")
+    solver = ikdp.load(shipped_checkpoint(name))
+    with running_app(solver, animation_seconds=1.0, target=(1.2, 0.5)) as app:
+        settle(app)
+        errors: list[str] = []
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+        page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
+        page.goto(f"http://127.0.0.1:{app.server.get_port()}")
+        page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
+        before = read_png(page.screenshot(timeout=TIMEOUT * 1000))
+        page.get_by_text("joint space view").click()  # as a user would: the checkbox's label
+        deadline = time.monotonic() + TIMEOUT
+        while not app.writer.joint_space.shown and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert app.writer.joint_space.shown
+        app.toggle_play()  # the denoising plays with the view on
+        settle(app)
+        app.panel.timestep.value = app.solver.timesteps // 2
+        if name == "ikdp_n4":
+            app.panel.joint_space.second.value = "θ4"
+        app.move_target((0.0, 0.0))  # the base: for l1 = l2 a curve of solutions
+        settle(app)
+        time.sleep(SETTLE_IN_PAGE)
+        after = read_png(page.screenshot(timeout=TIMEOUT * 1000))
+        assert not errors, f"{errors[:3]} ({len(errors)} in all)"
+        # the page drew something new: the camera moved out and the square appeared
+        x, y, width, height = (int(value) for value in canvas_box(page))
+        changed = np.abs(after[y : y + height, x : x + width].astype(int) - before[y : y + height, x : x + width])
+        assert (changed.max(axis=-1) > 40).mean() > 0.02
+        page.close()
