@@ -26,6 +26,7 @@ import torch
 import tyro
 
 import ikdp
+from ikdp.evaluation.machine import machine_description
 from ikdp.refine import damped_least_squares
 
 RESULTS = Path(__file__).resolve().parent / "results" / "robot_panda.json"
@@ -109,7 +110,11 @@ def main(config: RobotBenchmarkConfig) -> dict:
     solver = ikdp.load(config.checkpoint)
     arm = solver.arm
     targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
-    results: dict = {"config": {**asdict(config), "output": str(config.output)}, "checkpoint": solver.metadata["path"]}
+    results: dict = {
+        "config": {**asdict(config), "output": str(config.output)},
+        "checkpoint": solver.metadata["path"],
+        "machine": machine_description(threads=1),  # the load average says how shared the CPU was
+    }
 
     raw = {}
     for text in config.samplers:
