@@ -72,9 +72,9 @@ class ChainKind:
         return pose[: solver.arm.target_dim]
 
     def drawable(self, result, solver, target) -> tuple[chain_scene.ChainView, np.ndarray]:
-        """A solve's view and its skeleton trail (S+1, K*J, 2, 3)."""
+        """A solve's view and its trail: the K hands' paths, (S+1, K, 2, 3)."""
         view = chain_scene.build_chain_view(result, solver.arm, target)
-        return view, chain_scene.trail_points(view.points)
+        return view, chain_scene.hand_paths(view.points)
 
     def model_text(self, solver) -> str:
         return chain_readouts.chain_model_text(solver.arm, solver.timesteps, solver.metadata)

@@ -15,17 +15,21 @@ import torch
 
 from ikdp.rotations import matrix_to_quaternion
 from ikdp.solver import SolveResult
-from ikdp_viz.scene import state_labels
+from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, fade_colors, state_labels
+
+GHOST_FAINT = (238, 238, 238)  # the robots' meshes at t = T
+GHOST_DARK = (120, 120, 120)  # and at t = 0
 
 __all__ = [
     "ChainView",
     "build_chain_view",
+    "ghost_colors",
     "gizmo_pose",
+    "hand_paths",
     "initial_pose_target",
     "mesh_poses",
     "pose_target",
     "skeleton_segments",
-    "trail_points",
 ]
 
 
@@ -126,11 +130,22 @@ def skeleton_segments(points: np.ndarray) -> np.ndarray:
     return np.stack((points[..., :-1, :], points[..., 1:, :]), axis=-2).reshape(-1, 2, 3)
 
 
-def trail_points(points: np.ndarray) -> np.ndarray:
-    """Every state's K skeletons (S+1, K, J+1, 3) as segments, (S+1, K*J, 2, 3) float32: scene.trail_points' layout,
-    so the shared `scene.trail_until` cuts the trail behind any state."""
-    num_states = points.shape[0]
-    return skeleton_segments(points).reshape(num_states, -1, 2, 3).astype(np.float32)
+def hand_paths(points: np.ndarray) -> np.ndarray:
+    """Each sample's hand from state to state, (S+1, K, 2, 3) float32: state s holds the step from s-1 to s
+    (state 0 a point). The trail of a robot: K skeletons per state would hide the robots in a 3-D view.
+    Laid out as scene.trail_points (one segment per sample), so the shared `scene.trail_until` cuts it."""
+    hands = np.asarray(points)[:, :, -1]  # (S+1, K, 3)
+    before = np.concatenate((hands[:1], hands[:-1]))
+    return np.stack((before, hands), axis=-2).astype(np.float32)
+
+
+def ghost_colors(num_states: int, num_samples: int, highlight: int | None) -> np.ndarray:
+    """(S+1, K, 3) uint8 for the robots' meshes: faint to mid-grey (shaded meshes in the skeletons' near-black
+    read as one dark blob), the accent ramp for the highlighted sample."""
+    colors = np.repeat(fade_colors(num_states, GHOST_FAINT, GHOST_DARK)[:, None], num_samples, axis=1)
+    if highlight is not None:
+        colors[:, highlight] = fade_colors(num_states, ACCENT_FAINT, ACCENT_DARK)
+    return colors
 
 
 def build_chain_view(result: SolveResult, arm, target) -> ChainView:

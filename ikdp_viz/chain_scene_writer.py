@@ -5,8 +5,8 @@ replaces only what a frame looks like. For K samples at one state it draws:
 - the K robots' meshes (the URDF's collision meshes, one batched node per mesh, K
   instances): the highlighted sample opaque, the others translucent ghosts, all coloured
   from faint (t = T) to dark (t = 0) as the planar arms are;
-- the K skeletons (joint origins to the hand) as one line-segment node, and the trail of
-  the states before as another;
+- the K skeletons (joint origins to the hand) as one line-segment node, and as the trail
+  the path of each hand through the states before, as another;
 - the highlighted sample's hand frame, and the target as a 6-DoF gizmo that sets the pose.
 What to draw is `chain_scene.py`'s (plain numpy); this file copies it into viser handles.
 """
@@ -18,11 +18,11 @@ import viser
 
 import ikdp
 from ikdp_viz import chain_readouts
-from ikdp_viz.chain_scene import gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.chain_scene import ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
 from ikdp_viz.panel import Panel
 from ikdp_viz.robot_meshes import robot_meshes
-from ikdp_viz.scene import REFINED, error_curves, sample_colors, trail_colors, trail_until
-from ikdp_viz.scene_writer import ESTIMATE, LINE_PIXELS, PRIOR, SceneWriter
+from ikdp_viz.scene import REFINED, error_curves, grid_segments, sample_colors, trail_colors, trail_until
+from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
 
 GHOST_OPACITY = 0.25  # the samples not highlighted: seen through, so the highlighted robot stays readable
 SKELETON_PIXELS = 2.5  # the current state's skeletons, over the thinner trail
@@ -30,13 +30,15 @@ HAND_AXES = 0.08  # hand frame's axes, in reach radii
 
 
 def grid_cell(reach: float) -> float:
-    """A round grid spacing near a tenth of the reach (0.1 m for the Panda's 1.2 m)."""
-    return float(10 ** np.floor(np.log10(reach))) / 10
+    """The first round spacing (1, 2 or 5 times a power of ten) at least a tenth of the reach: 0.1 m for the Panda."""
+    tenth = reach / 10
+    power = 10 ** np.floor(np.log10(tenth))
+    return float(next(step * power for step in (1, 2, 5, 10) if step * power >= tenth * (1 - 1e-9)))
 
 
 def camera_fit_3d(center: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """(position, look_at) of a camera in front, to the side and above the reach ball: all of it in view."""
-    return center + reach * np.array([1.6, -1.6, 1.0]), center.copy()
+    return center + reach * np.array([1.25, -1.25, 0.8]), center.copy()
 
 
 class ChainSceneWriter(SceneWriter):
@@ -63,9 +65,12 @@ class ChainSceneWriter(SceneWriter):
         cell = grid_cell(reach)
         extent = 2 * cell * np.ceil(1.2 * reach / cell)
         scene.set_up_direction("+z")
-        grid = scene.add_grid(
-            "/grid", width=extent, height=extent, cell_size=cell, section_size=5 * cell,
-            cell_color=(225, 225, 225), section_color=(190, 190, 190), position=(center[0], center[1], 0.0),
+        # Line segments, not viser's shader grid: that alone took headless chromium from 40 to 2 frames/s.
+        segments, sections = grid_segments(extent / 2, cell, 5 * cell)
+        grid_colors = np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8)
+        grid = scene.add_line_segments(
+            "/grid", segments, colors=np.broadcast_to(grid_colors, segments.shape).copy(), thickness=1.0,
+            thickness_units="screen", position=(center[0], center[1], 0.0),
         )  # fmt: skip
         pose = self.target
         wxyz = pose[3:7] if len(pose) == 7 else (1.0, 0.0, 0.0, 0.0)
@@ -110,7 +115,9 @@ class ChainSceneWriter(SceneWriter):
         num_samples = view.num_samples
         lines = dict(thickness_units="screen", visible=False)
         empty = np.zeros((1, 2, 3))
-        self.trail = scene.add_line_segments("/samples/trail", empty, colors=(255, 255, 255), thickness=1.0, **lines)
+        self.trail = scene.add_line_segments(
+            "/samples/trail", empty, colors=(255, 255, 255), thickness=LINE_PIXELS, **lines
+        )
         self.skeletons = scene.add_line_segments(
             "/samples/skeletons", empty, colors=(0, 0, 0), thickness=SKELETON_PIXELS, **lines
         )
@@ -166,8 +173,11 @@ class ChainSceneWriter(SceneWriter):
 
     def _recolor(self) -> None:
         view = self.solved.view
-        self._colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())  # (S+1, K, 3)
-        self._trail_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
+        highlight = self.highlight_index()
+        self._colors = sample_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
+        self._trail_colors = trail_colors(self._colors, 1)  # (S+1, K, 2, 3): one hand step per sample
+        self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
+        self._ghost_colors = ghost_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
 
     def _write_refined(self) -> None:
         view = self.solved.view
@@ -190,17 +200,17 @@ class ChainSceneWriter(SceneWriter):
         mesh_positions, mesh_wxyzs = mesh_poses(arm, poses, self.mesh_links, self.mesh_offsets)  # (K, M, 3|4)
         opacities = np.full(view.num_samples, GHOST_OPACITY)
         opacities[highlight] = 1.0
-        colors = self._colors[state]  # (K, 3)
+        colors = self._ghost_colors[state]  # (K, 3)
         hand_position, hand_wxyz = gizmo_pose(arm, poses[highlight])
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
         with self.server.atomic():
             if self.panel.show_trail.value and state > 0:
-                points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state - 1)
+                points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
                 self.trail.points, self.trail.colors, self.trail.visible = points, segment_colors, True
             else:
                 self.trail.visible = False
-            self.skeletons.points = solved.trail_points[state]
-            self.skeletons.colors = self._trail_colors[state]
+            self.skeletons.points = skeleton_segments(view.points[state]).astype(np.float32)
+            self.skeletons.colors = self._skeleton_colors[state]
             self.skeletons.visible = True
             if estimate is not None:
                 self.estimate_lines.points = skeleton_segments(estimate)

@@ -15,7 +15,7 @@ import pytest
 from viz_helpers import running_app, settle
 
 import ikdp
-from ikdp_viz.chain_scene import gizmo_pose, mesh_poses
+from ikdp_viz.chain_scene import gizmo_pose, mesh_poses, skeleton_segments
 from ikdp_viz.chain_scene_writer import ChainSceneWriter
 
 K = 4
@@ -65,15 +65,15 @@ def test_the_timestep_slider_puts_that_state_on_screen(app):
     writer, view = app.writer, app.solved.view
     app.show_state(0)
     assert app.state == 0 and app.panel.timestep.value == app.solver.timesteps
-    np.testing.assert_array_equal(writer.skeletons.points, app.solved.trail_points[0])
+    np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[0]), atol=1e-6)
     assert not writer.trail.visible  # nothing before pure noise
     positions, _ = mesh_poses(app.solver.arm, view.joint_values[0], writer.mesh_links, writer.mesh_offsets)
     np.testing.assert_allclose(writer.ghosts[3].batched_positions, positions[:, 3], atol=1e-5)
     colors_at_noise = writer.ghosts[0].batched_colors.copy()
     app.panel.timestep.value = 4  # as the page's slider does: the nearest state
     assert int(view.labels[app.state]) == 4 and app.state == app.solver.timesteps - 4
-    np.testing.assert_array_equal(writer.skeletons.points, app.solved.trail_points[app.state])
-    assert writer.trail.visible and len(writer.trail.points) == app.state * K * app.solver.arm.num_joints
+    np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[app.state]), atol=1e-6)
+    assert writer.trail.visible and len(writer.trail.points) == (app.state + 1) * K  # the hands' paths so far
     assert (writer.ghosts[0].batched_colors.astype(int) <= colors_at_noise).all()  # darker toward t = 0
 
 
@@ -115,3 +115,9 @@ def test_a_solve_is_reproducible_from_its_seed(app):
     app.request_solve()
     settle(app)
     np.testing.assert_array_equal(app.solved.view.final_joint_values, first)
+
+
+def test_the_floor_grid_is_spaced_in_round_numbers_near_a_tenth_of_the_reach():
+    from ikdp_viz.chain_scene_writer import grid_cell
+
+    assert [grid_cell(reach) for reach in (0.986, 1.0, 3.0, 0.3, 12.0)] == [0.1, 0.1, 0.5, 0.05, 2.0]

@@ -14,12 +14,13 @@ from ikdp_viz.arm_kinds import ChainKind, arm_kind
 from ikdp_viz.chain_readouts import chain_solve_text, error_pair, pose_text
 from ikdp_viz.chain_scene import (
     build_chain_view,
+    ghost_colors,
     gizmo_pose,
+    hand_paths,
     initial_pose_target,
     mesh_poses,
     pose_target,
     skeleton_segments,
-    trail_points,
 )
 from ikdp_viz.robot_meshes import robot_meshes
 
@@ -56,15 +57,31 @@ def test_the_view_holds_every_state_of_every_sample(view, solver):
 
 def test_skeleton_segments_run_from_the_first_joint_to_the_hand_as_the_arm_computes(view, solver):
     arm = solver.arm
-    segments = trail_points(view.points)  # (S+1, K*J, 2, 3)
-    assert segments.shape == (view.num_states, K * arm.num_joints, 2, 3) and segments.dtype == np.float32
+    segments = skeleton_segments(view.points)  # (S+1 * K * J, 2, 3)
+    assert segments.shape == (view.num_states * K * arm.num_joints, 2, 3)
     per_sample = segments.reshape(view.num_states, K, arm.num_joints, 2, 3)
     fk = arm.forward_kinematics(torch.as_tensor(view.joint_values)).numpy()  # (S+1, K, J+1, 3)
     hand = arm.end_effector_frame(torch.as_tensor(view.joint_values))[1].numpy()  # (S+1, K, 3)
     np.testing.assert_allclose(per_sample[..., 0, 0, :], fk[..., 0, :], atol=1e-6)
     np.testing.assert_allclose(per_sample[..., -1, 1, :], hand, atol=1e-6)
     np.testing.assert_array_equal(per_sample[..., 1:, 0, :], per_sample[..., :-1, 1, :])  # a connected polyline
-    assert skeleton_segments(view.final_points).shape == (K * arm.num_joints, 2, 3)
+    np.testing.assert_array_equal(skeleton_segments(view.points[2]), per_sample[2].reshape(-1, 2, 3))
+
+
+def test_the_trail_is_each_hand_moving_from_state_to_state(view):
+    paths = hand_paths(view.points)  # (S+1, K, 2, 3)
+    assert paths.shape == (view.num_states, K, 2, 3) and paths.dtype == np.float32
+    np.testing.assert_allclose(paths[:, :, 1], view.points[:, :, -1], atol=1e-6)
+    np.testing.assert_allclose(paths[1:, :, 0], view.points[:-1, :, -1], atol=1e-6)
+    np.testing.assert_array_equal(paths[0, :, 0], paths[0, :, 1])  # pure noise: no step yet
+
+
+def test_ghost_colors_fade_from_faint_to_grey_with_the_highlighted_sample_in_the_accent():
+    colors = ghost_colors(5, 3, highlight=1)
+    assert colors.shape == (5, 3, 3) and colors.dtype == np.uint8
+    assert tuple(colors[0, 0]) == (238, 238, 238) and tuple(colors[-1, 2]) == (120, 120, 120)
+    assert tuple(colors[-1, 1]) == (20, 90, 210)
+    assert (np.diff(colors[:, 0].astype(int), axis=0) <= 0).all()
 
 
 def test_the_hand_frame_is_the_forward_kinematics_of_the_best_sample(view, solver):
