@@ -2,9 +2,11 @@
 
 `SceneWriter` owns the queue, the solve on screen and the animation; this subclass
 replaces only what a frame looks like. For K samples at one state it draws:
-- the K robots' meshes (the URDF's collision meshes, one batched node per mesh, K
-  instances): the highlighted sample opaque, the others translucent ghosts, all coloured
-  from faint (t = T) to dark (t = 0) as the planar arms are;
+- the K robots' meshes (the URDF's collision meshes): the highlighted sample opaque, one
+  node per mesh; the others translucent ghosts, one batched node per mesh with K instances
+  (the highlighted one scaled to nothing: a translucent instance drawn before an opaque
+  one in the same node hides it). Coloured from faint (t = T) to dark (t = 0) as the
+  planar arms are;
 - the K skeletons (joint origins to the hand) as one line-segment node, and as the trail
   the path of each hand through the states before, as another;
 - the highlighted sample's hand frame, and the target as a 6-DoF gizmo that sets the pose.
@@ -24,7 +26,7 @@ from ikdp_viz.robot_meshes import robot_meshes
 from ikdp_viz.scene import REFINED, error_curves, grid_segments, sample_colors, trail_colors, trail_until
 from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
 
-GHOST_OPACITY = 0.25  # the samples not highlighted: seen through, so the highlighted robot stays readable
+GHOST_OPACITY = 0.15  # the samples not highlighted: seen through, so the highlighted robot stays readable
 SKELETON_PIXELS = 2.5  # the current state's skeletons, over the thinner trail
 HAND_AXES = 0.08  # hand frame's axes, in reach radii
 
@@ -37,8 +39,12 @@ def grid_cell(reach: float) -> float:
 
 
 def camera_fit_3d(center: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """(position, look_at) of a camera in front, to the side and above the reach ball: all of it in view."""
-    return center + reach * np.array([1.25, -1.25, 0.8]), center.copy()
+    """(position, look_at) of a camera in front of, beside and above the reach ball, seen along (-1, 1, -0.6).
+
+    Both moved along the screen's right, (1, 1, 0) / sqrt 2, so the robot stands left of centre, clear of the panel.
+    """
+    shift = 0.3 * reach * np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    return center + reach * np.array([1.0, -1.0, 0.6]) + shift, center + shift
 
 
 class ChainSceneWriter(SceneWriter):
@@ -46,8 +52,11 @@ class ChainSceneWriter(SceneWriter):
 
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.ghosts: list = []  # one batched mesh node per robot mesh, K instances
+        self.robot: list = []  # the highlighted sample: one opaque mesh node per robot mesh
         self.skeletons = self.hand = None
         super().__init__(server, panel, solver, target, gizmo_update)
+        # Off at start: near t = T the hands jump across the whole reach ball, and their paths cage the robots.
+        panel.show_trail.value = False
 
     # -------------------------------------------------------------- static scene
 
@@ -136,12 +145,24 @@ class ChainSceneWriter(SceneWriter):
                 identity,
                 np.zeros((num_samples, 3)),
                 batched_colors=np.zeros((num_samples, 3), np.uint8),
-                batched_opacities=np.ones(num_samples),
+                batched_scales=np.ones(num_samples),
+                opacity=GHOST_OPACITY,
                 lod="off",
                 cast_shadow=False,
                 receive_shadow=False,
                 visible=False,
             )  # fmt: skip
+            for mesh in self.robot_meshes
+        ]
+        self.robot = [
+            scene.add_mesh_simple(
+                f"/samples/highlighted/{mesh.name}",
+                mesh.vertices,
+                mesh.faces,
+                cast_shadow=False,
+                receive_shadow=False,
+                visible=False,
+            )
             for mesh in self.robot_meshes
         ]
         self.hand = scene.add_frame(
@@ -151,9 +172,9 @@ class ChainSceneWriter(SceneWriter):
         self.nodes_shape = shape
 
     def _remove_arm_nodes(self) -> None:
-        for handle in self.ghosts:
+        for handle in (*self.ghosts, *self.robot):
             handle.remove()
-        self.ghosts = []
+        self.ghosts, self.robot = [], []
         for name in ("skeletons", "hand"):
             handle = getattr(self, name, None)
             if handle is not None:
@@ -198,8 +219,8 @@ class ChainSceneWriter(SceneWriter):
         arm = self.solver.arm
         poses = np.stack([view.pose_at(state, sample) for sample in range(view.num_samples)])  # (K, J)
         mesh_positions, mesh_wxyzs = mesh_poses(arm, poses, self.mesh_links, self.mesh_offsets)  # (K, M, 3|4)
-        opacities = np.full(view.num_samples, GHOST_OPACITY)
-        opacities[highlight] = 1.0
+        scales = np.ones(view.num_samples)
+        scales[highlight] = 0.0  # drawn opaque by its own nodes
         colors = self._ghost_colors[state]  # (K, 3)
         hand_position, hand_wxyz = gizmo_pose(arm, poses[highlight])
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
@@ -221,7 +242,11 @@ class ChainSceneWriter(SceneWriter):
                 node.batched_positions = mesh_positions[:, index]
                 node.batched_wxyzs = mesh_wxyzs[:, index]
                 node.batched_colors = colors
-                node.batched_opacities = opacities
+                node.batched_scales = scales
+                node.visible = True
+            for index, node in enumerate(self.robot):
+                node.position, node.wxyz = mesh_positions[highlight, index], mesh_wxyzs[highlight, index]
+                node.color = tuple(int(channel) for channel in colors[highlight])
                 node.visible = True
             self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
             self.refined_lines.visible = state == last and view.refined

@@ -51,8 +51,10 @@ def test_a_solve_draws_every_sample_as_a_robot_and_a_skeleton(app):
         np.testing.assert_allclose(node.batched_wxyzs, wxyzs[:, index], atol=1e-5)
     highlight = app.highlight_index()
     assert highlight == view.best_sample()
-    opacities = writer.ghosts[0].batched_opacities
-    assert opacities[highlight] == 1.0 and (np.delete(opacities, highlight) < 1).all()
+    scales = writer.ghosts[0].batched_scales
+    assert scales[highlight] == 0 and (np.delete(scales, highlight) == 1).all()  # drawn opaque on its own
+    for index, node in enumerate(writer.robot):
+        np.testing.assert_allclose(node.position, positions[highlight, index], atol=1e-5)
     assert writer.skeletons.points.shape == (K * arm.num_joints, 2, 3)  # one node holds all K skeletons
     np.testing.assert_allclose(writer.skeletons.points[arm.num_joints - 1, 1], view.points[-1, 0, -1], atol=1e-6)
     hand_position, _ = gizmo_pose(arm, view.final_joint_values[highlight])
@@ -70,6 +72,8 @@ def test_the_timestep_slider_puts_that_state_on_screen(app):
     positions, _ = mesh_poses(app.solver.arm, view.joint_values[0], writer.mesh_links, writer.mesh_offsets)
     np.testing.assert_allclose(writer.ghosts[3].batched_positions, positions[:, 3], atol=1e-5)
     colors_at_noise = writer.ghosts[0].batched_colors.copy()
+    assert not app.panel.show_trail.value  # off at start in 3-D
+    app.panel.show_trail.value = True
     app.panel.timestep.value = 4  # as the page's slider does: the nearest state
     assert int(view.labels[app.state]) == 4 and app.state == app.solver.timesteps - 4
     np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[app.state]), atol=1e-6)
