@@ -1,7 +1,8 @@
 """IKDP viewer: the reverse diffusion of a planar arm or a robot from a URDF, live in the browser.
 
-Drag the red cross (a robot: the 6-DoF gizmo at its hand). For each new target the app runs the reverse diffusion on a
-worker thread (the newest target wins) and draws it as the paper's Fig. "vis":
+Drag the red cross (a robot: the 6-DoF gizmo at its hand). For each new target
+the app runs the reverse diffusion on a worker thread (the newest target wins)
+and draws it as the paper's Fig. "vis":
 every intermediate pose a thin line from faint (pure noise, t = T) to dark
 (t = 0), the current pose solid; then it plays the denoising from t = T to 0.
 
