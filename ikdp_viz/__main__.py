@@ -2,6 +2,7 @@
 
     python -m ikdp_viz                                   # the shipped ikdp_n4
     python -m ikdp_viz --ckpt ikdp_n8 --port 8081        # another shipped model, or a checkpoint's path
+    python -m ikdp_viz --ckpt checkpoints/ikdp_panda.pt  # a robot (URDF): meshes, 6-DoF gizmo at the hand
     python -m ikdp_viz --host 0.0.0.0                    # let other machines connect
     python -m ikdp_viz --target -0.01 1.2 --seed 0 --sampler ddim --steps 10   # reproduce what you saw
 
@@ -127,6 +128,8 @@ def main(argv: list[str] | None = None) -> None:
     try:
         path = checkpoint_path(config.ckpt)
         solver = load_solver(path, config.device)
+        if config.target is not None and solver.arm.kind != "planar":
+            fail("--target X Y: a robot's pose target is set with the gizmo at its hand")
 
         import torch
         import viser

@@ -1,14 +1,16 @@
-"""IKDP viewer: the reverse diffusion of a planar arm, live in the browser.
+"""IKDP viewer: the reverse diffusion of a planar arm or a robot from a URDF, live in the browser.
 
-Drag the red cross. For each new target the app runs the reverse diffusion on a
-worker thread (the newest target wins) and draws it as the paper's Fig. "vis":
+Drag the red cross (a robot: the 6-DoF gizmo at its hand). For each new target
+the app runs the reverse diffusion on a worker thread (the newest target wins)
+and draws it as the paper's Fig. "vis":
 every intermediate pose a thin line from faint (pure noise, t = T) to dark
 (t = 0), the current pose solid; then it plays the denoising from t = T to 0.
 
 This file wires four parts: the session (model, target: `session.py`), the solve
 worker (`solve_worker.py`, `solving.py`), the scene writer (`scene_writer.py`,
-the one thread that draws) and the panel (`panel.py`). Callbacks only change the
-session and send messages; they never write the scene.
+the one thread that draws; `chain_scene_writer.py` for a robot) and the panel
+(`panel.py`). Callbacks only change the session and send messages; they never
+write the scene. What differs per kind of arm is `arm_kinds.py`'s.
 """
 
 from __future__ import annotations
@@ -22,7 +24,8 @@ import viser
 
 import ikdp
 from ikdp.samplers import SAMPLERS, sampler_names
-from ikdp_viz import readouts
+from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.chain_scene_writer import ChainSceneWriter
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel, highlight_options
 from ikdp_viz.scene_writer import (
     Call,
@@ -43,6 +46,7 @@ from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
+SCENE_WRITERS = {"planar": SceneWriter, "chain": ChainSceneWriter}  # how each arm kind is drawn
 
 __all__ = ["VizApp", "camera_fit", "list_checkpoints"]
 
@@ -80,7 +84,8 @@ class VizApp:
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
             checkpoint_label=self._current_checkpoint_label(), model_text=self._model_description(),
         )  # fmt: skip
-        self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
+        writer_class = SCENE_WRITERS[arm_kind(solver).name]
+        self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self._wire_panel()
         server.on_client_connect(lambda client: self.refresh_checkpoints())
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
@@ -164,8 +169,8 @@ class VizApp:
         """Gizmo callback. Async so viser runs it on its event loop in arrival order; it only queues work."""
         if event.phase == "start":
             return
-        x, y = event.target.position[:2]
-        self.move_target((x, y), arrival=time.perf_counter(), from_gizmo=True, dragging=event.phase == "update")
+        point = arm_kind(self.solver).gizmo_target(self.solver, event.target)
+        self.move_target(point, arrival=time.perf_counter(), from_gizmo=True, dragging=event.phase == "update")
 
     def show_state(self, state: int) -> None:
         """Put state `state` (0 = pure noise .. S = final) on screen, and wait until it is written."""
@@ -223,11 +228,11 @@ class VizApp:
             self.writer.flush()
 
     def draw_prior(self, wait: bool = True) -> np.ndarray:
-        """Draw K poses from the model's training prior and show them; returns their joints (K, N+1, 2)."""
+        """Draw K poses from the model's training prior and show them; returns their joints (K, N+1, 2 or 3)."""
         with self.session.lock:
             solver = self.session.solver
             headings = solver.prior.sample(int(self.panel.samples.value), solver.arm)  # (K, N)
-            joints = solver.arm.forward_kinematics(headings.double()).numpy()  # (K, N+1, 2)
+            joints = solver.arm.forward_kinematics(headings.double()).numpy()  # (K, N+1, 2 or 3)
             self.writer.post(ShowPrior(joints))
         if wait:
             self.writer.flush()
@@ -243,6 +248,8 @@ class VizApp:
         solved, highlight = done[0]  # read on the writer's thread: the pair belongs to one solve
         if solved is None:
             raise ValueError("export: nothing solved yet")
+        if arm_kind(self.solver).name != "planar":
+            raise ValueError("export: the GIF and PNG draw the planar arm; a robot's denoising is not exported")
         x, y = solved.view.target
         stem = f"ikdp_{solved.request.sampler}_K{solved.view.num_samples}_seed{solved.request.seed}_{x:+.3f}_{y:+.3f}"
         seconds = float(self.panel.duration.value) or 4.0
@@ -280,8 +287,7 @@ class VizApp:
         self.request_solve()
 
     def _model_description(self) -> str:
-        solver = self.solver
-        return readouts.model_text(solver.num_links, solver.lengths, solver.timesteps, solver.metadata)
+        return arm_kind(self.solver).model_text(self.solver)
 
     # ---------------------------------------------------------------- checkpoints
 
@@ -315,6 +321,13 @@ class VizApp:
             solver = ikdp.load(path, device=self.solver.device)
         except (ikdp.CheckpointError, OSError, RuntimeError) as error:
             self.panel.model_text.content = f"**Could not load** {error}  \n\n" + self._model_description()
+            self.panel.checkpoint.value = self._current_checkpoint_label()
+            return False
+        if arm_kind(solver) is not arm_kind(self.solver):  # the scene writer draws one kind of arm
+            self.panel.model_text.content = (
+                f"**Could not load** {path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
+                f"{arm_kind(self.solver).name} arm; start another with --ckpt {path}  \n\n" + self._model_description()
+            )
             self.panel.checkpoint.value = self._current_checkpoint_label()
             return False
         with self.session.lock:

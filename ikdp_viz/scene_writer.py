@@ -360,6 +360,9 @@ class SceneWriter:
             if message.force:
                 self.gizmo.position = position + (1e-3, 0.0, 0.0)
             self.gizmo.position = position
+        self._write_target_text()
+
+    def _write_target_text(self) -> None:
         self.panel.target_text.content = readouts.target_text(self.target, self.target_clamped, self.solver.reach)
 
     def _new_model(self, message: NewModel) -> None:
@@ -372,7 +375,7 @@ class SceneWriter:
         self.panel.timestep.max = num_timesteps
         self.panel.steps.max = num_timesteps
         self.panel.steps.value = min(self.panel.steps.value, num_timesteps)
-        self.panel.target_text.content = readouts.target_text(self.target, self.target_clamped, self.solver.reach)
+        self._write_target_text()
         self._write_readouts()
 
     # -------------------------------------------------------------- drawing one state

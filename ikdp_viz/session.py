@@ -15,16 +15,14 @@ import numpy as np
 
 import ikdp
 from ikdp.samplers import SAMPLERS
+from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.panel import Panel
-from ikdp_viz.scene import clamp_to_workspace
 from ikdp_viz.solving import SolveRequest
 
 
 def initial_target(solver: ikdp.Solver, target=None) -> np.ndarray:
-    """(2,) `target` clamped into the solver's workspace; a point up and to the right when None."""
-    inner, outer = solver.reach
-    point = np.array(target if target is not None else (0.55 * outer, 0.3 * outer), dtype=np.float64)
-    return clamp_to_workspace(point, inner, outer)[0]
+    """`target` clamped into the solver's workspace, or the arm kind's first target when None."""
+    return arm_kind(solver).initial_target(solver, target)
 
 
 class Session:
@@ -33,13 +31,12 @@ class Session:
     def __init__(self, solver: ikdp.Solver, target=None):
         self.lock = threading.RLock()
         self.solver = solver  # the model the newest requests use
-        self.target = initial_target(solver, target)  # (2,) inside the workspace
+        self.target = initial_target(solver, target)  # planar (2,), chain pose (7,); inside the workspace
         self.target_clamped = False  # the point asked for lay outside the workspace
 
     def move(self, point, *, from_gizmo: bool) -> tuple[np.ndarray, bool, bool]:
         """Clamp `point` into the workspace and make it the target: (target, clamped, changed). Hold `lock`."""
-        inner, outer = self.solver.reach
-        target, clamped = clamp_to_workspace(point, inner, outer)
+        target, clamped = arm_kind(self.solver).clamp(self.solver, point)
         changed = not np.array_equal(target, self.target)
         # A drag past the boundary ends on the boundary point the app put the gizmo at: still the clamped request.
         clamped = clamped or (not changed and from_gizmo and self.target_clamped)

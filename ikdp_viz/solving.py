@@ -15,7 +15,9 @@ import numpy as np
 import torch
 
 import ikdp
-from ikdp_viz.scene import SolveView, build_view, trail_points
+from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.chain_scene import ChainView
+from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 
 
@@ -24,7 +26,7 @@ class SolveRequest:
     """One solve, with the panel's settings as they were when it was asked for."""
 
     solver: ikdp.Solver
-    target: np.ndarray  # (2,) inside the workspace
+    target: np.ndarray  # inside the workspace: planar (2,), chain pose (7,) position m + wxyz
     num_samples: int  # K
     sampler: str  # a name of ikdp.samplers.SAMPLERS
     steps: int | None  # the sampler's number of steps; None: all T (and for samplers that always take T)
@@ -37,7 +39,7 @@ class SolveRequest:
 @dataclass(frozen=True)
 class Solved:
     request: SolveRequest  # what was asked
-    view: SolveView  # what is drawn
+    view: SolveView | ChainView  # what is drawn (arm_kinds picks which)
     trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
     solve_seconds: float  # solver.solve alone
 
@@ -58,7 +60,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
     generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
     started = time.perf_counter()
     result = request.solver.solve(
-        request.target[None],  # (1, 2): one target
+        request.target[None],  # (1, target_dim): one target
         num_samples=request.num_samples,
         sampler=request.sampler,
         steps=request.steps,
@@ -71,5 +73,5 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
     if result.stopped:
         raise Cancelled
     solve_seconds = time.perf_counter() - started
-    view = build_view(result, request.solver.lengths, request.target)
-    return Solved(request, view, trail_points(view.joints), solve_seconds)
+    view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target)
+    return Solved(request, view, trail, solve_seconds)

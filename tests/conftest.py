@@ -30,3 +30,24 @@ def tiny_checkpoint(tmp_path_factory):
     )
     torch.manual_seed(0)
     return train(config)
+
+
+@pytest.fixture(scope="session")
+def tiny_chain_checkpoint(tmp_path_factory):
+    """A Panda pose model (7 joints, T = 10) trained for a few steps: loadable, not accurate."""
+    folder = tmp_path_factory.mktemp("tiny_chain")
+    config = TrainConfig(
+        robot="panda",
+        steps=5,
+        batch=32,
+        hidden=32,
+        blocks=1,
+        timesteps=10,
+        eval_targets=8,
+        save_every=1000,
+        output=str(folder / "tiny_panda.pt"),
+        log_dir=str(folder / "tb"),
+        threads=1,
+    )
+    torch.manual_seed(0)
+    return train(config)

@@ -1,0 +1,58 @@
+"""The 3-D viewer's panel texts, in millimetres and degrees, from plain values: no viser here."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikdp_viz.chain_scene import ChainView
+
+
+def pose_text(target: np.ndarray) -> str:
+    """The target: position in mm, then (a pose target) its rotation as the quaternion (w, x, y, z)."""
+    x, y, z = 1000 * np.asarray(target[:3])
+    text = f"**Target** x = {x:+.1f}, y = {y:+.1f}, z = {z:+.1f} mm"
+    if len(target) < 7:
+        return text
+    w, qx, qy, qz = target[3:7]
+    return text + f"  \nwxyz = ({w:.3f}, {qx:+.3f}, {qy:+.3f}, {qz:+.3f})"
+
+
+def error_pair(position_m: float, rotation_rad: float) -> str:
+    return f"{1000 * position_m:.1f} mm / {np.degrees(rotation_rad):.2f}°"
+
+
+def chain_solve_text(
+    view: ChainView, state: int, highlight: int, *, sampler: str, seed: int, refine_steps: int, solve_seconds: float
+) -> str:
+    """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve."""
+    last = view.num_states - 1
+    best = ", the best" if highlight == view.best_sample() else ""
+    lines = [
+        f"**Step** {state} of {last} (t = {int(view.labels[state])})",
+        f"**Hand error**, sample {highlight + 1} of {view.num_samples}{best}: "
+        f"{error_pair(view.position_error[state, highlight], view.rotation_error[state, highlight])} now, "
+        f"{error_pair(view.position_error[last, highlight], view.rotation_error[last, highlight])} at t = 0",
+        f"median of K = {view.num_samples} at t = 0: "
+        f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]))}",
+    ]
+    if view.refined:
+        lines.append(
+            f"refined ({refine_steps} DLS steps): "
+            f"{error_pair(view.final_position_error[highlight], view.final_rotation_error[highlight])}"
+        )
+    lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler}, {last} steps, seed {seed})")
+    return "  \n".join(lines)
+
+
+def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
+    """A chain checkpoint's robot, schedule, denoiser and the accuracy measured when it was saved."""
+    model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
+    lines = [
+        f"**Robot** {arm.base_link} → {arm.ee_link}, {arm.num_joints} joints, {arm.target} targets, "
+        f"**T** = {num_timesteps}",
+        f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation {model.get('representation', '?')}",
+    ]
+    numbers = {key: value for key, value in metrics.items() if isinstance(value, (int, float))}
+    if numbers:
+        lines.append("**at save** " + ", ".join(f"{key} {value:.4g}" for key, value in sorted(numbers.items())[:6]))
+    return "  \n".join(lines)

@@ -1,0 +1,181 @@
+"""Drawable arrays for a spatial chain (a robot from a URDF): ghost skeletons, their colours, mesh and gizmo poses.
+
+The 3-D counterpart of `scene.py`, with the same rule: no viser here, only numpy
+(and the arm's own kinematics), so everything the chain viewer draws is built and
+tested without a server. Positions are metres in the robot's base frame; rotations
+are unit quaternions (w, x, y, z), the convention of the arm's pose targets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ikdp.rotations import matrix_to_quaternion
+from ikdp.solver import SolveResult
+from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, fade_colors, state_labels
+
+GHOST_FAINT = (238, 238, 238)  # the robots' meshes at t = T
+GHOST_DARK = (120, 120, 120)  # and at t = 0
+
+__all__ = [
+    "ChainView",
+    "build_chain_view",
+    "ghost_colors",
+    "gizmo_pose",
+    "hand_paths",
+    "initial_pose_target",
+    "mesh_poses",
+    "pose_target",
+    "skeleton_segments",
+]
+
+
+@dataclass(frozen=True)
+class ChainView:
+    """Every state of one chain solve, as joint values and joint origins, with the errors the readouts show."""
+
+    target: np.ndarray  # (7,) position (m) + unit quaternion (w, x, y, z) the hand was asked to reach
+    labels: np.ndarray  # (S+1,) diffusion time of each state, T (pure noise) down to 0
+    joint_values: np.ndarray  # (S+1, K, J) every sample's joint values at every state (radians / metres)
+    points: np.ndarray  # (S+1, K, J+1, 3) joint origins then the end effector, per state and sample
+    position_error: np.ndarray  # (S+1, K) metres from each state's end effector to the target position
+    rotation_error: np.ndarray  # (S+1, K) radians between each state's hand rotation and the target's
+    final_joint_values: np.ndarray  # (K, J) the poses the solver returned (refined when `refined`)
+    final_points: np.ndarray  # (K, J+1, 3) their joint origins
+    final_position_error: np.ndarray  # (K,) metres, of the returned poses
+    final_rotation_error: np.ndarray  # (K,) radians, of the returned poses
+    refined: bool  # the returned poses are the damped-least-squares polish of the last state
+    estimate_points: np.ndarray | None = None  # (S, K, J+1, 3) the denoiser's x̂0 at the step into state s+1
+
+    @property
+    def num_states(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def num_samples(self) -> int:
+        return self.points.shape[1]
+
+    @property
+    def num_joints(self) -> int:
+        return self.joint_values.shape[2]
+
+    @property
+    def tip_error(self) -> np.ndarray:
+        """(S+1, K) metres: the planar view's name for the hand's position error, read by the shared plot."""
+        return self.position_error
+
+    def best_sample(self) -> int:
+        """The sample whose returned pose lands closest: position in metres plus rotation at 0.1 m per radian."""
+        return int(np.argmin(self.final_position_error + 0.1 * self.final_rotation_error))
+
+    def estimate_at(self, state: int) -> np.ndarray | None:
+        """(K, J+1, 3) the denoiser's x̂0 when it made state `state`; None at t = T or when not recorded."""
+        if self.estimate_points is None or state < 1:
+            return None
+        return self.estimate_points[state - 1]
+
+    def pose_at(self, state: int, sample: int) -> np.ndarray:
+        """(J,) the joint values to draw the robot's meshes at: the returned pose at the last state."""
+        if state >= self.num_states - 1:
+            return self.final_joint_values[sample]
+        return self.joint_values[state, sample]
+
+
+def pose_target(position, wxyz) -> np.ndarray:
+    """A pose target (7,) from a position (3,) and a quaternion (4,) (w, x, y, z), normalised; w >= 0."""
+    position = np.asarray(position, dtype=np.float64).reshape(-1)
+    wxyz = np.asarray(wxyz, dtype=np.float64).reshape(-1)
+    if position.shape != (3,):
+        raise ValueError(f"position: expected 3 numbers, got shape {position.shape}")
+    if wxyz.shape != (4,):
+        raise ValueError(f"wxyz: expected a quaternion of 4 numbers (w, x, y, z), got shape {wxyz.shape}")
+    norm = np.linalg.norm(wxyz)
+    if not np.isfinite(norm) or norm < 1e-9:
+        raise ValueError(f"wxyz: expected a non-zero quaternion, got {wxyz.tolist()}")
+    wxyz = wxyz / norm
+    return np.concatenate((position, wxyz if wxyz[0] >= 0 else -wxyz))
+
+
+def gizmo_pose(arm, joint_values) -> tuple[np.ndarray, np.ndarray]:
+    """Where the gizmo goes for joint values (J,): the end effector's position (3,) and wxyz (4,)."""
+    pose = arm.end_effector_pose(torch.as_tensor(np.asarray(joint_values), dtype=torch.float64)).numpy()
+    return pose[:3], pose[3:]
+
+
+def initial_pose_target(arm) -> np.ndarray:
+    """(7,) the hand's pose with every joint at the middle of its limits: a pose the arm surely reaches."""
+    middle = arm.joint_limits.double().mean(dim=-1)  # (J,)
+    position, wxyz = gizmo_pose(arm, middle.numpy())
+    return pose_target(position, wxyz)
+
+
+def mesh_poses(arm, joint_values, link_index: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (..., M, 3) and wxyz (..., M, 4) of M meshes at joint values (..., J).
+
+    Mesh m hangs from link `link_index[m]` (an index into `arm.link_names`) with the 4x4
+    offset `offsets[m]` (the URDF geometry's origin, scale not included).
+    """
+    links = arm.link_poses(torch.as_tensor(np.asarray(joint_values), dtype=torch.float64))  # (..., L, 4, 4)
+    index = torch.as_tensor(np.asarray(link_index), dtype=torch.long)
+    frames = links[..., index, :, :] @ torch.as_tensor(np.asarray(offsets), dtype=torch.float64)  # (..., M, 4, 4)
+    return frames[..., :3, 3].numpy(), matrix_to_quaternion(frames[..., :3, :3]).numpy()
+
+
+def skeleton_segments(points: np.ndarray) -> np.ndarray:
+    """Polylines (..., P, 3) -> their segments (M, 2, 3) in order, M = prod(...) * (P-1)."""
+    points = np.asarray(points)
+    return np.stack((points[..., :-1, :], points[..., 1:, :]), axis=-2).reshape(-1, 2, 3)
+
+
+def hand_paths(points: np.ndarray) -> np.ndarray:
+    """Each sample's hand from state to state, (S+1, K, 2, 3) float32: state s holds the step from s-1 to s
+    (state 0 a point). The trail of a robot: K skeletons per state would hide the robots in a 3-D view.
+    Laid out as scene.trail_points (one segment per sample), so the shared `scene.trail_until` cuts it."""
+    hands = np.asarray(points)[:, :, -1]  # (S+1, K, 3)
+    before = np.concatenate((hands[:1], hands[:-1]))
+    return np.stack((before, hands), axis=-2).astype(np.float32)
+
+
+def ghost_colors(num_states: int, num_samples: int, highlight: int | None) -> np.ndarray:
+    """(S+1, K, 3) uint8 for the robots' meshes: faint to mid-grey (shaded meshes in the skeletons' near-black
+    read as one dark blob), the accent ramp for the highlighted sample."""
+    colors = np.repeat(fade_colors(num_states, GHOST_FAINT, GHOST_DARK)[:, None], num_samples, axis=1)
+    if highlight is not None:
+        colors[:, highlight] = fade_colors(num_states, ACCENT_FAINT, ACCENT_DARK)
+    return colors
+
+
+def build_chain_view(result: SolveResult, arm, target) -> ChainView:
+    """The drawable arrays of the first target of a chain `solver.solve(..., return_trajectory=True)` result."""
+    if result.trajectory is None:
+        raise ValueError("result: solve with return_trajectory=True, the viewer draws every state")
+    target = np.asarray(target, dtype=np.float64).reshape(-1)
+    if target.shape != (arm.target_dim,):
+        raise ValueError(f"target: expected {arm.target_dim} numbers, got shape {target.shape}")
+    goal = torch.as_tensor(target, dtype=torch.float64)
+    trajectory = result.trajectory[:, 0].detach().cpu().double()  # (S+1, K, J)
+    final = result.angles[0].detach().cpu().double()  # (K, J)
+
+    def rotation_error(joints: torch.Tensor) -> np.ndarray:
+        if arm.target_dim != 7:
+            return np.zeros(joints.shape[:-1])
+        return arm.rotation_error(joints, goal.expand(*joints.shape[:-1], 7)).double().numpy()
+
+    estimates = None if result.estimates is None else result.estimates[:, 0].detach().cpu().double()
+    return ChainView(
+        target=target,
+        labels=state_labels(result.timesteps),
+        joint_values=trajectory.numpy(),
+        points=arm.forward_kinematics(trajectory).numpy(),
+        position_error=arm.position_error(trajectory, goal).double().numpy(),
+        rotation_error=rotation_error(trajectory),
+        final_joint_values=final.numpy(),
+        final_points=arm.forward_kinematics(final).numpy(),
+        final_position_error=arm.position_error(final, goal).double().numpy(),
+        final_rotation_error=rotation_error(final),
+        refined=not torch.equal(result.angles, result.raw_angles),
+        estimate_points=None if estimates is None else arm.forward_kinematics(estimates).numpy(),
+    )

@@ -1,0 +1,56 @@
+"""A robot's checkpoint in a real browser: the 3-D view opens, draws a solve, and the page logs no error.
+
+A tiny Panda model; every page error and every console message of type "error" is
+collected while the page loads, a solve is drawn and animated, the slider is moved
+and refine is switched on; none may appear.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from viz_helpers import CHROMIUM_ARGS, NO_FADE_CSS, chromium_or_skip, read_png, running_app, settle
+
+import ikdp
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+TIMEOUT = 60.0  # seconds, for anything the browser has to render
+SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
+BACKGROUND = 250  # viser's canvas is white; a drawn robot is darker than this
+
+
+@pytest.fixture(scope="module")
+def browser():
+    executable = chromium_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+def test_a_chain_checkpoint_opens_and_draws_a_solve_without_page_errors(browser, tiny_chain_checkpoint):
+    with running_app(ikdp.load(tiny_chain_checkpoint), solve_now=False, animation_seconds=1.0) as app:
+        errors: list[str] = []
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+        page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
+        page.goto(f"http://127.0.0.1:{app.server.get_port()}")
+        page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
+        page.add_style_tag(content=NO_FADE_CSS)
+        app.panel.samples.value = 4  # solves the first target, animated from t = T
+        settle(app)
+        assert app.solved is not None and app.state == app.solved.view.num_states - 1
+        page.get_by_text("Hand error", exact=False).first.wait_for(timeout=TIMEOUT * 1000)  # readouts reached the page
+        app.panel.timestep.value = app.solver.timesteps // 2
+        app.panel.refine.value = True
+        settle(app)
+        time.sleep(SETTLE_IN_PAGE)
+        image = read_png(page.screenshot(timeout=TIMEOUT * 1000))
+        assert not errors, f"{errors[:3]} ({len(errors)} in all)"
+        scene = image[:, : image.shape[1] // 2]  # left of the panel: the robots stand there
+        assert (scene.max(axis=-1) < BACKGROUND - 60).mean() > 0.002, "nothing dark drawn in the scene"
+        page.close()

@@ -1,0 +1,127 @@
+"""The 3-D viewer in-process: a chain (Panda) checkpoint on a real viser server, driven through its handles.
+
+A tiny Panda model (T = 10) trained for a few steps: the poses are poor, the drawing
+and the readouts are what is checked. K = 4; the animation duration is 0, so every
+check reads a finished frame.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import re
+
+import numpy as np
+import pytest
+from viz_helpers import running_app, settle
+
+import ikdp
+from ikdp_viz.chain_scene import gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.chain_scene_writer import ChainSceneWriter
+
+K = 4
+
+
+@pytest.fixture
+def app(tiny_chain_checkpoint):
+    with running_app(ikdp.load(tiny_chain_checkpoint), solve_now=False, animation_seconds=0.0) as app:
+        app.panel.samples.value = K  # asks for a solve of the first target
+        settle(app)
+        yield app
+
+
+def drag_pose(app, position, wxyz, phase: str = "end") -> None:
+    """Do what viser does when the page drags the 6-DoF gizmo: set its pose, then fire its callback."""
+    import viser
+
+    gizmo = app.writer.gizmo
+    gizmo._impl.position, gizmo._impl.wxyz = np.asarray(position, float), np.asarray(wxyz, float)
+    event = viser.TransformControlsEvent(client=None, client_id=None, target=gizmo, phase=phase)
+    asyncio.run_coroutine_threadsafe(app.on_gizmo_update(event), app.server.get_event_loop()).result(timeout=10)
+
+
+def test_a_solve_draws_every_sample_as_a_robot_and_a_skeleton(app):
+    writer, view = app.writer, app.solved.view
+    arm = app.solver.arm
+    assert isinstance(writer, ChainSceneWriter)
+    assert view.num_samples == K and app.state == view.num_states - 1
+    assert len(writer.ghosts) == len(writer.robot_meshes) == 9  # the Panda's collision meshes, one node each
+    positions, wxyzs = mesh_poses(arm, view.final_joint_values, writer.mesh_links, writer.mesh_offsets)
+    for index, node in enumerate(writer.ghosts):
+        np.testing.assert_allclose(node.batched_positions, positions[:, index], atol=1e-5)
+        np.testing.assert_allclose(node.batched_wxyzs, wxyzs[:, index], atol=1e-5)
+    highlight = app.highlight_index()
+    assert highlight == view.best_sample()
+    scales = writer.ghosts[0].batched_scales
+    assert scales[highlight] == 0 and (np.delete(scales, highlight) == 1).all()  # drawn opaque on its own
+    for index, node in enumerate(writer.robot):
+        np.testing.assert_allclose(node.position, positions[highlight, index], atol=1e-5)
+    assert writer.skeletons.points.shape == (K * arm.num_joints, 2, 3)  # one node holds all K skeletons
+    np.testing.assert_allclose(writer.skeletons.points[arm.num_joints - 1, 1], view.points[-1, 0, -1], atol=1e-6)
+    hand_position, _ = gizmo_pose(arm, view.final_joint_values[highlight])
+    np.testing.assert_allclose(writer.hand.position, hand_position, atol=1e-6)
+    np.testing.assert_allclose(writer.gizmo.position, app.target[:3], atol=1e-6)
+    assert "Target" in app.panel.target_text.content and "mm" in app.panel.target_text.content
+
+
+def test_the_timestep_slider_puts_that_state_on_screen(app):
+    writer, view = app.writer, app.solved.view
+    app.show_state(0)
+    assert app.state == 0 and app.panel.timestep.value == app.solver.timesteps
+    np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[0]), atol=1e-6)
+    assert not writer.trail.visible  # nothing before pure noise
+    positions, _ = mesh_poses(app.solver.arm, view.joint_values[0], writer.mesh_links, writer.mesh_offsets)
+    np.testing.assert_allclose(writer.ghosts[3].batched_positions, positions[:, 3], atol=1e-5)
+    colors_at_noise = writer.ghosts[0].batched_colors.copy()
+    assert not app.panel.show_trail.value  # off at start in 3-D
+    app.panel.show_trail.value = True
+    app.panel.timestep.value = 4  # as the page's slider does: the nearest state
+    assert int(view.labels[app.state]) == 4 and app.state == app.solver.timesteps - 4
+    np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[app.state]), atol=1e-6)
+    assert writer.trail.visible and len(writer.trail.points) == (app.state + 1) * K  # the hands' paths so far
+    assert (writer.ghosts[0].batched_colors.astype(int) <= colors_at_noise).all()  # darker toward t = 0
+
+
+def test_the_gizmo_sets_the_pose_target(app):
+    position = app.target[:3] + np.array([0.05, -0.02, -0.03])
+    wxyz = np.array([0.0, 1.0, 0.0, 0.0])  # the hand pointing down
+    drag_pose(app, position, wxyz)
+    settle(app)
+    np.testing.assert_allclose(app.target, np.concatenate((position, wxyz)), atol=1e-9)
+    np.testing.assert_allclose(app.solved.request.target, app.target)
+    np.testing.assert_allclose(app.solved.view.target, app.target)
+
+
+def test_refine_shows_the_polished_error_in_millimetres_and_degrees(app):
+    app.panel.refine.value = True
+    settle(app)
+    view = app.solved.view
+    assert view.refined and app.writer.refined_lines.visible
+    text = app.panel.readout_text.content
+    assert re.search(r"refined \(5 DLS steps\): \d+\.\d mm / \d+\.\d\d°", text), text
+    assert re.search(r"\*\*Hand error\*\*, sample \d+ of 4, the best: [\d.]+ mm / [\d.]+°", text), text
+    app.show_state(0)
+    assert not app.writer.refined_lines.visible  # the polish belongs to the final pose
+
+
+def test_the_prior_and_a_planar_checkpoint_are_handled(app, tiny_checkpoint):
+    joints = app.draw_prior()
+    assert joints.shape == (K, app.solver.arm.num_joints + 1, 3) and app.writer.prior_lines is not None
+    assert app.panel.export_button.disabled
+    with pytest.raises(ValueError, match="planar"):
+        app.export(None)
+    assert not app.load_checkpoint(tiny_checkpoint)  # a planar model: this viewer draws a robot
+    assert "Could not load" in app.panel.model_text.content and "planar" in app.panel.model_text.content
+    assert app.solver.arm.kind == "chain"
+
+
+def test_a_solve_is_reproducible_from_its_seed(app):
+    first = app.solved.view.final_joint_values.copy()
+    app.request_solve()
+    settle(app)
+    np.testing.assert_array_equal(app.solved.view.final_joint_values, first)
+
+
+def test_the_floor_grid_is_spaced_in_round_numbers_near_a_tenth_of_the_reach():
+    from ikdp_viz.chain_scene_writer import grid_cell
+
+    assert [grid_cell(reach) for reach in (0.986, 1.0, 3.0, 0.3, 12.0)] == [0.1, 0.1, 0.5, 0.05, 2.0]
