@@ -35,8 +35,8 @@ class VizConfig:
     device: str = "cpu"  # torch device the model runs on: cpu, cuda, cuda:1, ...
     target: tuple[float, float] | None = None  # X Y of the first target (None: up and to the right); for bug reports
     samples: int = 16  # samples K, 1 to 64
-    sampler: str = "ddpm"  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m
-    steps: int = 20  # reverse steps of a sampler that can skip some (not ddpm)
+    sampler: str | None = None  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m (None: ddpm; dpmpp2m for a robot)
+    steps: int | None = None  # reverse steps of a sampler that can skip some, not ddpm (None: 20; 10 for a robot)
     seed: int = 0  # sampling seed
     refine_steps: int = 0  # damped-least-squares steps after sampling; 0: none
 
@@ -52,11 +52,11 @@ def check_settings(config: VizConfig) -> None:
     from ikdp.samplers import SAMPLERS
     from ikdp_viz.panel import MAX_SAMPLES
 
-    if config.sampler not in SAMPLERS:
+    if config.sampler is not None and config.sampler not in SAMPLERS:
         fail(f"--sampler {config.sampler}: expected one of {', '.join(SAMPLERS)}")
     for name, value, low, high in (
         ("samples", config.samples, 1, MAX_SAMPLES),
-        ("steps", config.steps, 1, 10_000),
+        ("steps", 1 if config.steps is None else config.steps, 1, 10_000),
         ("refine-steps", config.refine_steps, 0, 50),
         ("seed", config.seed, 0, 2**31 - 1),
     ):
@@ -66,10 +66,13 @@ def check_settings(config: VizConfig) -> None:
 
 def apply_settings(app, config: VizConfig) -> None:
     """Set the panel as the flags ask, then solve the first target."""
+    from ikdp_viz.arm_kinds import arm_kind
+
     panel = app.panel
+    default_sampler, default_steps = arm_kind(app.solver).default_sampler
     panel.samples.value = config.samples
-    panel.sampler.value = config.sampler
-    panel.steps.value = min(config.steps, panel.steps.max)
+    panel.sampler.value = config.sampler or default_sampler
+    panel.steps.value = min(default_steps if config.steps is None else config.steps, panel.steps.max)
     panel.seed.value = config.seed
     if config.refine_steps:
         panel.refine_steps.value = config.refine_steps

@@ -57,7 +57,7 @@ def test_help_lists_every_option_once_with_its_one_default():
     assert result.returncode == 0
     text = " ".join(result.stdout.replace("│", " ").split())  # the help box wraps lines
     options = (("--ckpt", "ikdp_n4"), ("--host", "127.0.0.1"), ("--port", "8080"), ("--device", "cpu"),
-               ("--target", "None"), ("--samples", "16"), ("--sampler", "ddpm"), ("--seed", "0"))  # fmt: skip
+               ("--target", "None"), ("--samples", "16"), ("--sampler", "None"), ("--seed", "0"))  # fmt: skip
     for option, default in options:
         assert text.count(f"{option} ") == 1, text  # listed once
         entry = text.split(f"{option} ")[1].split(" --")[0]
@@ -135,3 +135,18 @@ def test_the_flags_open_the_viewer_on_a_given_target_with_given_settings(tiny_ch
         request, view = app.solved.request, app.solved.view
         assert np.allclose(view.target, [0.5, -1.0]) and view.num_samples == 5 and view.num_states == 5
         assert (request.sampler, request.steps, request.seed, request.refine_steps) == ("ddim", 4, 3, 2)
+
+
+def test_without_sampler_flags_a_planar_model_uses_ddpm_and_a_robot_ten_dpm_solver_steps(
+    tiny_checkpoint, tiny_chain_checkpoint
+):
+    from viz_helpers import running_app, settle
+
+    import ikdp
+    from ikdp_viz.__main__ import VizConfig, apply_settings
+
+    for checkpoint, expected in ((tiny_checkpoint, ("ddpm", None)), (tiny_chain_checkpoint, ("dpmpp2m", 10))):
+        with running_app(ikdp.load(checkpoint), solve_now=False, animation_seconds=0.0) as app:
+            apply_settings(app, VizConfig(samples=2))
+            settle(app)
+            assert (app.solved.request.sampler, app.solved.request.steps) == expected
