@@ -276,7 +276,12 @@ def train(config: TrainConfig, on_step: StepHook | None = None) -> Path:
     joins_group = "WORLD_SIZE" in os.environ and not dist.is_initialized()
     processes = start_processes(config)
     try:
-        return _train(config, processes, on_step)
+        output = _train(config, processes, on_step)
+        if joins_group:
+            # leave together: a rank that tore down its gloo connections while rank 0 was still saving
+            # was seen to abort (SIGABRT) once in CI, failing the whole torchrun
+            dist.barrier()
+        return output
     finally:
         if joins_group:
             dist.destroy_process_group()
