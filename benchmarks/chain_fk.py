@@ -2,7 +2,7 @@
 
     python benchmarks/chain_fk.py
 
-One torch thread, float32, the same joint values for both; median of REPEATS runs after a
+One torch thread, float32, the same joint values for both; median of `repeats` runs after a
 warm-up. Rows: ChainArm's end-effector frame (rotation matrix + position: what training needs
 before the features), its pose with the quaternion, and pytorch_kinematics' `forward_kinematics`
 of the serial chain to `panda_hand` (a 4x4 per pose). The largest difference between the two
@@ -17,35 +17,40 @@ import os
 import platform
 import statistics
 import time
+from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
 
 import torch
+import tyro
 
 from ikdp.robots import ROBOTS, example_robot_data_file, load_robot
 
-POSES = 100_000
-REPEATS = 7
+
+@dataclass(frozen=True)
+class ChainFkConfig:
+    poses: int = 100_000  # Panda poses per FK call
+    repeats: int = 7  # timed calls per method (median quoted)
 
 
-def median_seconds(function) -> float:
+def median_seconds(function, repeats: int) -> float:
     function()  # warm-up
     seconds = []
-    for _ in range(REPEATS):
+    for _ in range(repeats):
         started = time.perf_counter()
         function()
         seconds.append(time.perf_counter() - started)
     return statistics.median(seconds)
 
 
-def main() -> None:
+def main(config: ChainFkConfig) -> None:
     import pytorch_kinematics as pk
 
     torch.set_num_threads(1)
     arm = load_robot("panda")
     urdf_text = example_robot_data_file(ROBOTS["panda"].urdf).read_text()
     chain = pk.build_serial_chain_from_urdf(urdf_text, "panda_hand")
-    joints = arm.random_poses(POSES, generator=torch.Generator().manual_seed(0))  # (POSES, 7) float32
+    joints = arm.random_poses(config.poses, generator=torch.Generator().manual_seed(0))  # (poses, 7) float32
 
     difference = (chain.forward_kinematics(joints).get_matrix()[:, :3, 3] - arm.end_effector_frame(joints)[1]).abs()
     cases = {
@@ -53,10 +58,10 @@ def main() -> None:
         "ChainArm.end_effector_pose (+ quaternion)": lambda: arm.end_effector_pose(joints),
         "pytorch_kinematics forward_kinematics": lambda: chain.forward_kinematics(joints).get_matrix(),
     }
-    print(f"FK of {POSES:,} Panda poses to panda_hand, float32, median of {REPEATS}, torch threads = 1")
+    print(f"FK of {config.poses:,} Panda poses to panda_hand, float32, median of {config.repeats}, torch threads = 1")
     print(f"largest position difference between the two: {float(difference.max()):.2e} m\n")
     print("| method | median ms | vs pytorch_kinematics |\n|---|---|---|")
-    timings = {name: median_seconds(function) for name, function in cases.items()}
+    timings = {name: median_seconds(function, config.repeats) for name, function in cases.items()}
     reference = timings["pytorch_kinematics forward_kinematics"]
     rows = []
     for name, seconds in timings.items():
@@ -67,8 +72,8 @@ def main() -> None:
     output.write_text(
         json.dumps(
             {
-                "poses": POSES,
-                "repeats": REPEATS,
+                "poses": config.poses,
+                "repeats": config.repeats,
                 "threads": 1,
                 "dtype": "float32",
                 "max_position_difference_m": float(difference.max()),
@@ -86,4 +91,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(tyro.cli(ChainFkConfig, description=__doc__.splitlines()[0]))

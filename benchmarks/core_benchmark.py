@@ -36,7 +36,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import torch
-from ikdp._cli import parse_into
+import tyro
 
 import ikdp
 from benchmarks.pk_chain import PkSettings
@@ -216,7 +216,7 @@ def print_table(title: str, header: tuple[str, ...], rows: list[tuple]) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    config = parse_into(CoreBenchmarkConfig, __doc__.splitlines()[0], argv)
+    config = tyro.cli(CoreBenchmarkConfig, args=argv, description=__doc__.splitlines()[0])
     if config.quick:
         config = CoreBenchmarkConfig(
             **(asdict(config) | {"latency_repeats": 3, "warmup": 1, "accuracy_targets": 100, "batch_targets": 20})

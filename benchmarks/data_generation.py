@@ -12,37 +12,45 @@ import json
 import platform
 import statistics
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import torch
+import tyro
 
 from ikdp.kinematics import tip_position
 from ikdp.priors import PosePrior
 
-PAIRS = 100_000
-REPEATS = 21
+
+@dataclass(frozen=True)
+class DataGenerationConfig:
+    pairs: int = 100_000  # (theta, target) pairs per call
+    repeats: int = 21  # timed calls per prior and N (median quoted)
 
 
-def time_generation(prior: PosePrior, num_links: int) -> float:
+def time_generation(prior: PosePrior, num_links: int, config: DataGenerationConfig) -> float:
     generator = torch.Generator().manual_seed(0)
     lengths = torch.ones(num_links)
-    tip_position(prior.sample(PAIRS, num_links, generator=generator), lengths)  # warm-up
+    tip_position(prior.sample(config.pairs, num_links, generator=generator), lengths)  # warm-up
     seconds = []
-    for _ in range(REPEATS):
+    for _ in range(config.repeats):
         started = time.perf_counter()
-        headings = prior.sample(PAIRS, num_links, generator=generator)
+        headings = prior.sample(config.pairs, num_links, generator=generator)
         tip_position(headings, lengths)
         seconds.append(time.perf_counter() - started)
     return statistics.median(seconds)
 
 
-def main() -> None:
+def main(config: DataGenerationConfig) -> None:
     rows = []
-    print(f"{PAIRS:,} (theta, target) pairs, median of {REPEATS}, torch threads = {torch.get_num_threads()}\n")
+    print(
+        f"{config.pairs:,} (theta, target) pairs, median of {config.repeats}, "
+        f"torch threads = {torch.get_num_threads()}\n"
+    )
     print("| prior | N | median ms |\n|---|---|---|")
     for kind in ("uniform", "relaxed"):
         for num_links in (2, 4, 8):
-            milliseconds = 1000 * time_generation(PosePrior(kind=kind), num_links)
+            milliseconds = 1000 * time_generation(PosePrior(kind=kind), num_links, config)
             rows.append({"prior": kind, "links": num_links, "median_ms": round(milliseconds, 2)})
             print(f"| {kind} | {num_links} | {milliseconds:.1f} |")
     output = Path("benchmarks/results/data_generation.json")
@@ -50,8 +58,8 @@ def main() -> None:
     output.write_text(
         json.dumps(
             {
-                "pairs": PAIRS,
-                "repeats": REPEATS,
+                "pairs": config.pairs,
+                "repeats": config.repeats,
                 "threads": torch.get_num_threads(),
                 "torch": str(torch.__version__),
                 "machine": platform.machine(),
@@ -64,4 +72,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(tyro.cli(DataGenerationConfig, description=__doc__.splitlines()[0]))

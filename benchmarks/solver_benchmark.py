@@ -49,7 +49,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import torch
-from ikdp._cli import parse_into
+import tyro
 
 import ikdp
 from benchmarks.pk_chain import PkSettings
@@ -528,7 +528,7 @@ def environment() -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-    config = parse_into(BenchmarkConfig, __doc__.splitlines()[0], argv)
+    config = tyro.cli(BenchmarkConfig, args=argv, description=__doc__.splitlines()[0])
     output = REPO_ROOT / config.output
     docs = REPO_ROOT / config.docs if config.docs else None
     if config.docs_only:

@@ -1,0 +1,30 @@
+"""Every benchmark script starts: its imports and its command line hold as the library moves.
+
+The benchmarks run for minutes, so the suite never runs them; but a script that no longer
+imports (as core_benchmark did when ikdp._cli was removed) is only found the day someone
+needs its numbers. `--help` imports everything and builds the command line, in seconds.
+"""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+HELPERS = {"pk_chain"}  # run by another script with file arguments, not a command of its own
+SCRIPTS = sorted(path.stem for path in (REPO / "benchmarks").glob("*.py") if path.stem not in HELPERS)
+
+
+def test_the_benchmarks_are_found():
+    assert {"core_benchmark", "robot_benchmark", "fidelity", "viz_frames"} <= set(SCRIPTS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SCRIPTS)
+def test_a_benchmark_script_starts(name):
+    result = subprocess.run(
+        [sys.executable, "-m", f"benchmarks.{name}", "--help"], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr[-1500:]
+    assert "usage" in result.stdout.lower()
