@@ -78,7 +78,14 @@ def test_refinement_reaches_the_target():
 # Raw-sampler promises per shipped model (median tip error, bone lengths, K=1): our models reach
 # 1 % of a bone (measured ~0.007 on 2,000 targets, docs/BENCHMARKS.md); the paper's transformer,
 # trained on a fifth of the poses, is far coarser (measured 0.42).
-RAW_MEDIAN_LIMITS = {"ikdp_n2": 0.01, "ikdp_n4": 0.01, "ikdp_n8": 0.01, "ikdp_n4_relaxed": 0.02, "ikdp_paper_n4": 0.6}
+RAW_MEDIAN_LIMITS = {
+    "ikdp_n2": 0.01,
+    "ikdp_n4": 0.01,
+    "ikdp_n8": 0.01,
+    "ikdp_n4_relaxed": 0.02,
+    "ikdp_n4_relaxed_mlp": 0.015,  # measured 0.0099 on 2,000 targets
+    "ikdp_paper_n4": 0.6,
+}
 
 
 @pytest.mark.slow
