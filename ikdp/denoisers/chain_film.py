@@ -20,6 +20,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks
 from ikdp.refine import dls_step
 from ikdp.representation import AngleRepresentation
 
@@ -51,13 +52,8 @@ class ChainFiLMDenoiser(nn.Module):
         self.register_buffer("half_range", representation.half_range.clone(), persistent=False)
         require_feature_width("chain_film", hidden, feature_dim)
         self.input = nn.Linear(feature_dim, hidden)
-        self.condition_net = nn.Sequential(
-            nn.Linear(config.time_dim + arm.condition_dim, hidden),
-            nn.SiLU(),
-            nn.Linear(hidden, config.blocks * 2 * hidden),
-        )
-        self.norms = nn.ModuleList(nn.LayerNorm(hidden, elementwise_affine=False) for _ in range(config.blocks))
-        self.blocks = nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(config.blocks))
+        self.condition_net = condition_network(config.time_dim, arm.condition_dim, hidden, config.blocks)
+        self.norms, self.blocks = normed_blocks(hidden, config.blocks)
         self.output = nn.Linear(hidden, dim)
         nn.init.zeros_(self.output.weight)  # start as the identity: predict x_0 = x_t
         nn.init.zeros_(self.output.bias)
@@ -88,8 +84,7 @@ class ChainFiLMDenoiser(nn.Module):
         """x: (M, D), target: (M, target_dim), film: condition() rows -> the estimate of x_0, (M, D)."""
         feature_scale = film[:, -1, 0, : self.input.in_features]
         h = self.input(self.features(x, target) * feature_scale)
-        for index, (norm, block) in enumerate(zip(self.norms, self.blocks, strict=True)):
-            h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], norm(h), film[:, index, 0])))
+        h = film_residual_pass(h, film, self.norms, self.blocks)
         return x + self.output(nn.functional.silu(h))
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:

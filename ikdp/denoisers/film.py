@@ -25,6 +25,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.denoisers.film_trunk import condition_network
 from ikdp.refine import planar_dls_step
 from ikdp.representation import AngleRepresentation
 
@@ -50,11 +51,7 @@ class FiLMDenoiser(nn.Module):
         self.register_buffer("kinematic_mask", kinematic_mask, persistent=False)
         require_feature_width("film", hidden, feature_dim)
         self.input = nn.Linear(feature_dim, hidden)
-        self.condition_net = nn.Sequential(
-            nn.Linear(config.time_dim + 2, hidden),
-            nn.SiLU(),
-            nn.Linear(hidden, config.blocks * 2 * hidden),
-        )
+        self.condition_net = condition_network(config.time_dim, 2, hidden, config.blocks)  # target (x, y)
         self.blocks = nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(config.blocks))
         self.output = nn.Linear(hidden, num_links)  # a turn of each link: x_0 = x_t rotated
         nn.init.zeros_(self.output.weight)  # start as the identity: predict x_0 = x_t

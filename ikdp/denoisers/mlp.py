@@ -15,6 +15,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig
 from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks
 from ikdp.representation import AngleRepresentation
 
 
@@ -25,13 +26,8 @@ class MLPDenoiser(nn.Module):
         self.arm = arm
         dim, hidden = representation.dim, config.hidden
         self.input = nn.Linear(dim, hidden)
-        self.condition_net = nn.Sequential(
-            nn.Linear(config.time_dim + arm.condition_dim, hidden),
-            nn.SiLU(),
-            nn.Linear(hidden, config.blocks * 2 * hidden),
-        )
-        self.norms = nn.ModuleList(nn.LayerNorm(hidden, elementwise_affine=False) for _ in range(config.blocks))
-        self.blocks = nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(config.blocks))
+        self.condition_net = condition_network(config.time_dim, arm.condition_dim, hidden, config.blocks)
+        self.norms, self.blocks = normed_blocks(hidden, config.blocks)
         self.output = nn.Linear(hidden, dim)
 
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -43,8 +39,7 @@ class MLPDenoiser(nn.Module):
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
         """x: (M, D), film: (M, blocks, 2, hidden) -> the prediction (M, D). `target` is inside `film`."""
         h = self.input(x)
-        for index, (norm, block) in enumerate(zip(self.norms, self.blocks, strict=True)):
-            h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], norm(h), film[:, index, 0])))
+        h = film_residual_pass(h, film, self.norms, self.blocks)
         return self.output(nn.functional.silu(h))
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
