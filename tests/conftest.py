@@ -1,4 +1,4 @@
-"""Shared fixtures: a tiny checkpoint trained by the project's own training code."""
+"""Shared fixtures: tiny checkpoints trained by the project's own training code, and a real browser."""
 
 from __future__ import annotations
 
@@ -51,3 +51,17 @@ def tiny_chain_checkpoint(tmp_path_factory):
     )
     torch.manual_seed(0)
     return train(config)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Debian's chromium driven by Playwright, one per test module (skipped without it, failed in CI)."""
+    from viz_helpers import CHROMIUM_ARGS, chromium_or_skip
+
+    executable = chromium_or_skip()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()

@@ -12,10 +12,8 @@ import time
 import numpy as np
 import pytest
 from viz_helpers import (
-    CHROMIUM_ARGS,
     NO_FADE_CSS,
     canvas_box,
-    chromium_or_skip,
     dark_fraction,
     drag_gizmo,
     project,
@@ -30,17 +28,6 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 TIMEOUT = 60.0  # seconds, for anything the browser has to render
 TARGET = (1.4, 0.9)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    executable = chromium_or_skip()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
 
 
 class Viewer:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from viz_helpers import CHROMIUM_ARGS, NO_FADE_CSS, chromium_or_skip, read_png, running_app, settle
+from viz_helpers import NO_FADE_CSS, open_page_collecting_errors, read_png, running_app, settle
 
 import ikdp
 
@@ -21,25 +21,9 @@ SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 BACKGROUND = 250  # viser's canvas is white; a drawn robot is darker than this
 
 
-@pytest.fixture(scope="module")
-def browser():
-    executable = chromium_or_skip()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
-
-
 def test_a_chain_checkpoint_opens_and_draws_a_solve_without_page_errors(browser, tiny_chain_checkpoint):
     with running_app(ikdp.load(tiny_chain_checkpoint), solve_now=False, animation_seconds=1.0) as app:
-        errors: list[str] = []
-        page = browser.new_page(viewport={"width": 1280, "height": 900})
-        page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
-        page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
-        page.goto(f"http://127.0.0.1:{app.server.get_port()}")
-        page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
+        page, errors = open_page_collecting_errors(browser, app)
         page.add_style_tag(content=NO_FADE_CSS)
         app.panel.samples.value = 4  # solves the first target, animated from t = T
         settle(app)

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 import pytest
-from viz_helpers import CHROMIUM_ARGS, chromium_or_skip, running_app, settle
+from viz_helpers import open_page_collecting_errors, running_app, settle
 
 import ikdp
 from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint
@@ -25,32 +25,10 @@ SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw each solve (software WebGL
 
 
 @pytest.fixture(scope="module")
-def browser():
-    executable = chromium_or_skip()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
-
-
-@pytest.fixture(scope="module")
 def shipped_solver():
     if DEFAULT_MODEL not in {path.stem for path in list_shipped()}:
         pytest.skip(f"the shipped {DEFAULT_MODEL} is not there")
     return ikdp.load(shipped_checkpoint(DEFAULT_MODEL))
-
-
-def page_errors(browser, app) -> tuple[object, list[str]]:
-    """A page on `app` and the list every page error and console error is appended to."""
-    errors: list[str] = []
-    page = browser.new_page(viewport={"width": 1280, "height": 1600})
-    page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
-    page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
-    page.goto(f"http://127.0.0.1:{app.server.get_port()}")
-    page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
-    return page, errors
 
 
 def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shipped_solver):
@@ -63,7 +41,7 @@ def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shippe
         "inside": (0.9, -0.6),
     }
     with running_app(shipped_solver, solve_now=False, animation_seconds=1.0) as app:
-        page, errors = page_errors(browser, app)
+        page, errors = open_page_collecting_errors(browser, app, height=1600)
         assert (app.panel.samples.value, app.panel.seed.value, app.panel.sampler.value) == (16, 0, "ddpm")
         for name, target in sweep.items():
             app.move_target(target)

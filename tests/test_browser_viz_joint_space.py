@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from viz_helpers import CHROMIUM_ARGS, canvas_box, chromium_or_skip, read_png, running_app, settle
+from viz_helpers import canvas_box, open_page_collecting_errors, read_png, running_app, settle
 
 import ikdp
 from ikdp.shipped import list_shipped, shipped_checkpoint
@@ -20,17 +20,6 @@ TIMEOUT = 60.0  # seconds, for anything the browser has to render
 SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 
 
-@pytest.fixture(scope="module")
-def browser():
-    executable = chromium_or_skip()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
-
-
 @pytest.mark.parametrize("name", ["ikdp_n2", "ikdp_n4"])
 def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, name):
     if name not in {path.stem for path in list_shipped()}:
@@ -38,12 +27,7 @@ def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, na
     solver = ikdp.load(shipped_checkpoint(name))
     with running_app(solver, animation_seconds=1.0, target=(1.2, 0.5)) as app:
         settle(app)
-        errors: list[str] = []
-        page = browser.new_page(viewport={"width": 1280, "height": 900})
-        page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
-        page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
-        page.goto(f"http://127.0.0.1:{app.server.get_port()}")
-        page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
+        page, errors = open_page_collecting_errors(browser, app)
         before = read_png(page.screenshot(timeout=TIMEOUT * 1000))
         page.get_by_text("joint space view").click()  # as a user would: the checkbox's label
         deadline = time.monotonic() + TIMEOUT

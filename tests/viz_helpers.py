@@ -28,6 +28,7 @@ CHROMIUM_ARGS = [
 # viser fades its canvas in with a CSS transition that software rendering advances slowly; the
 # pixels under test are the scene's, so the fade is switched off in the page.
 NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
+BROWSER_TIMEOUT = 60.0  # seconds, for anything the browser has to render
 
 
 @contextlib.contextmanager
@@ -150,3 +151,14 @@ def hand_made_result() -> SolveResult:
         raw_angles=final,
         raw_tip_error=error,
     )
+
+
+def open_page_collecting_errors(browser, app, *, height: int = 900) -> tuple[object, list[str]]:
+    """A connected page on `app`, and the list every page error and console error is appended to."""
+    errors: list[str] = []
+    page = browser.new_page(viewport={"width": 1280, "height": height})
+    page.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+    page.on("pageerror", lambda error: errors.append(f"pageerror: {error}"))
+    page.goto(f"http://127.0.0.1:{app.server.get_port()}")
+    page.get_by_text("Connected", exact=True).wait_for(timeout=BROWSER_TIMEOUT * 1000)
+    return page, errors
