@@ -23,7 +23,7 @@ from ikdp_viz import chain_readouts
 from ikdp_viz.chain_scene import ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
 from ikdp_viz.panel import Panel
 from ikdp_viz.robot_meshes import robot_meshes
-from ikdp_viz.scene import REFINED, error_curves, grid_segments, sample_colors, trail_colors, trail_until
+from ikdp_viz.scene import REFINED, grid_segments, sample_colors, trail_colors, trail_until
 from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
 
 GHOST_OPACITY = 0.15  # the samples not highlighted: seen through, so the highlighted robot stays readable
@@ -206,16 +206,9 @@ class ChainSceneWriter(SceneWriter):
         count = view.num_samples * view.num_joints
         self.refined_lines.colors = np.broadcast_to(np.array(REFINED, np.uint8), (count, 2, 3))
 
-    def _draw_state(self, state: int) -> None:
-        """Write one frame: trail before `state`, the K skeletons and robots at `state`, the hand, the readouts."""
-        solved = self.solved
-        if solved is None:
-            return
+    def _draw_arms(self, solved, state: int, highlight: int) -> None:
+        """The 3-D frame: trail before `state`, the K skeletons and robots at `state`, the hand."""
         view = solved.view
-        last = view.num_states - 1
-        state = int(np.clip(state, 0, last))
-        self.state = state
-        highlight = self.highlight_index()
         arm = self.solver.arm
         poses = np.stack([view.pose_at(state, sample) for sample in range(view.num_samples)])  # (K, J)
         mesh_positions, mesh_wxyzs = mesh_poses(arm, poses, self.mesh_links, self.mesh_offsets)  # (K, M, 3|4)
@@ -224,46 +217,36 @@ class ChainSceneWriter(SceneWriter):
         colors = self._ghost_colors[state]  # (K, 3)
         hand_position, hand_wxyz = gizmo_pose(arm, poses[highlight])
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
-        with self.server.atomic():
-            if self.panel.show_trail.value and state > 0:
-                points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
-                self.trail.points, self.trail.colors, self.trail.visible = points, segment_colors, True
-            else:
-                self.trail.visible = False
-            self.skeletons.points = skeleton_segments(view.points[state]).astype(np.float32)
-            self.skeletons.colors = self._skeleton_colors[state]
-            self.skeletons.visible = True
-            if estimate is not None:
-                self.estimate_lines.points = skeleton_segments(estimate)
-                self.estimate_lines.visible = True
-            else:
-                self.estimate_lines.visible = False
-            for index, node in enumerate(self.ghosts):
-                node.batched_positions = mesh_positions[:, index]
-                node.batched_wxyzs = mesh_wxyzs[:, index]
-                node.batched_colors = colors
-                node.batched_scales = scales
-                node.visible = True
-            for index, node in enumerate(self.robot):
-                node.position, node.wxyz = mesh_positions[highlight, index], mesh_wxyzs[highlight, index]
-                node.color = tuple(int(channel) for channel in colors[highlight])
-                node.visible = True
-            self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
-            self.refined_lines.visible = state == last and view.refined
-            self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
-            self.panel.plot.data = error_curves(view, highlight, state)
-            self._write_readouts()
-            self._write_play_label()
+        if self.panel.show_trail.value and state > 0:
+            points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
+            self.trail.points, self.trail.colors, self.trail.visible = points, segment_colors, True
+        else:
+            self.trail.visible = False
+        self.skeletons.points = skeleton_segments(view.points[state]).astype(np.float32)
+        self.skeletons.colors = self._skeleton_colors[state]
+        self.skeletons.visible = True
+        if estimate is not None:
+            self.estimate_lines.points = skeleton_segments(estimate)
+            self.estimate_lines.visible = True
+        else:
+            self.estimate_lines.visible = False
+        for index, node in enumerate(self.ghosts):
+            node.batched_positions = mesh_positions[:, index]
+            node.batched_wxyzs = mesh_wxyzs[:, index]
+            node.batched_colors = colors
+            node.batched_scales = scales
+            node.visible = True
+        for index, node in enumerate(self.robot):
+            node.position, node.wxyz = mesh_positions[highlight, index], mesh_wxyzs[highlight, index]
+            node.color = tuple(int(channel) for channel in colors[highlight])
+            node.visible = True
+        self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
+        self.refined_lines.visible = state == view.num_states - 1 and view.refined
 
-    def _write_readouts(self) -> None:
-        solved = self.solved
-        if solved is None:
-            failed = f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
-            self.panel.readout_text.content = failed
-            return
+    def _solve_text(self, solved) -> str:
         request = solved.request
         text = chain_readouts.chain_solve_text(
             solved.view, self.state, self.highlight_index(), sampler=request.sampler, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds,
         )  # fmt: skip
-        self.panel.readout_text.content = text + (f"  \n**Newest solve failed** {self.error}" if self.error else "")
+        return text + (f"  \n**Newest solve failed** {self.error}" if self.error else "")

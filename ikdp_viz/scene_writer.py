@@ -393,52 +393,56 @@ class SceneWriter:
         return highlight_index(self.panel.highlight.value, view.best_sample(), view.num_samples)
 
     def _draw_state(self, state: int) -> None:
-        """Write one frame: the trail up to `state`, the arms (and x̂0) at `state`, the readouts."""
+        """Write one frame at `state` (clamped): the arms as `_draw_arms` draws them, the slider, chart, readouts."""
         solved = self.solved
         if solved is None:
             return
         view = solved.view
-        last = view.num_states - 1
-        state = int(np.clip(state, 0, last))
+        state = int(np.clip(state, 0, view.num_states - 1))
         self.state = state
         highlight = self.highlight_index()
+        with self.server.atomic():
+            self._draw_arms(solved, state, highlight)
+            self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
+            self.panel.plot.data = error_curves(view, highlight, state)
+            self._write_readouts()
+            self._write_play_label()
+
+    def _draw_arms(self, solved, state: int, highlight: int) -> None:
+        """The planar frame: the trail up to `state`, the arms (and x̂0) at `state`, the joint space view."""
+        view = solved.view
         num_samples, num_links = view.num_samples, view.num_links
         lift = HIGHLIGHT_LIFT * self.sizes.joint
         placement = arm_placement(view.joints[state], view.lengths, raised=highlight, lift=lift)
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
-        with self.server.atomic():
-            if self.panel.show_trail.value:
-                points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
-                self.trail.points = points
-                self.trail.colors = segment_colors
-                self.trail.visible = True
-            else:
-                self.trail.visible = False
-            if estimate is not None:
-                self.estimate_lines.points = polyline_segments(estimate, z=0.5 * REFINED_LIFT * self.sizes.joint)
-                self.estimate_lines.visible = True
-            else:
-                self.estimate_lines.visible = False
-            self.links.batched_positions = placement.link_positions
-            self.links.batched_wxyzs = placement.link_wxyzs
-            self.links.batched_scales = placement.link_scales
-            self.links.batched_colors = np.repeat(colors, num_links, axis=0)
-            self.joints.batched_positions = placement.joint_positions
-            self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
-            self.tips.batched_positions = placement.tip_positions
-            self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
-            for node in (self.links, self.joints, self.tips):
-                node.visible = True
-            final_shown = state == last and view.refined
-            self.refined_lines.visible = final_shown
-            self.refined_tips.visible = final_shown
-            self.joint_space.draw(self.solver, solved, state, colors, highlight)
-            self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
-            self.panel.plot.data = error_curves(view, highlight, state)
-            self._write_readouts()
-            self._write_play_label()
+        if self.panel.show_trail.value:
+            points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
+            self.trail.points = points
+            self.trail.colors = segment_colors
+            self.trail.visible = True
+        else:
+            self.trail.visible = False
+        if estimate is not None:
+            self.estimate_lines.points = polyline_segments(estimate, z=0.5 * REFINED_LIFT * self.sizes.joint)
+            self.estimate_lines.visible = True
+        else:
+            self.estimate_lines.visible = False
+        self.links.batched_positions = placement.link_positions
+        self.links.batched_wxyzs = placement.link_wxyzs
+        self.links.batched_scales = placement.link_scales
+        self.links.batched_colors = np.repeat(colors, num_links, axis=0)
+        self.joints.batched_positions = placement.joint_positions
+        self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
+        self.tips.batched_positions = placement.tip_positions
+        self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
+        for node in (self.links, self.joints, self.tips):
+            node.visible = True
+        final_shown = state == view.num_states - 1 and view.refined
+        self.refined_lines.visible = final_shown
+        self.refined_tips.visible = final_shown
+        self.joint_space.draw(self.solver, solved, state, colors, highlight)
 
     def _write_play_label(self) -> None:
         playing = self.animation is not None
@@ -451,8 +455,12 @@ class SceneWriter:
             failed = f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
             self.panel.readout_text.content = failed
             return
+        self.panel.readout_text.content = self._solve_text(solved)
+
+    def _solve_text(self, solved) -> str:
+        """The readouts of the solve on screen at the state shown (markdown)."""
         request = solved.request
-        self.panel.readout_text.content = readouts.solve_text(
+        return readouts.solve_text(
             solved.view, self.state, self.highlight_index(), sampler=request.sampler, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, error=self.error,
         )  # fmt: skip
