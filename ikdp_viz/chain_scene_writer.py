@@ -57,6 +57,7 @@ class ChainSceneWriter(SceneWriter):
         super().__init__(server, panel, solver, target, gizmo_update)
         # Off at start: near t = T the hands jump across the whole reach ball, and their paths cage the robots.
         panel.show_trail.value = False
+        panel.joint_space.folder.visible = False  # the joint space view draws planar arms only
 
     # -------------------------------------------------------------- static scene
 

@@ -16,6 +16,7 @@ def joint_labels(num_joints: int) -> tuple[str, ...]:
 
 @dataclass
 class JointSpaceControls:
+    folder: viser.GuiFolderHandle  # hidden for arms the view does not draw (robots)
     show: viser.GuiCheckboxHandle
     first: viser.GuiDropdownHandle  # the joint along the square's x axis
     second: viser.GuiDropdownHandle  # the joint along its y axis
@@ -41,7 +42,7 @@ class JointSpaceControls:
 
 
 def build_joint_space_controls(gui: viser.GuiApi) -> JointSpaceControls:
-    with gui.add_folder("Joint space"):
+    with gui.add_folder("Joint space") as folder:
         show = gui.add_checkbox(
             "joint space view", False,
             hint="Beside the arm: two joints' angles on a torus, the solutions of the target (red), the samples at "
@@ -51,4 +52,4 @@ def build_joint_space_controls(gui: viser.GuiApi) -> JointSpaceControls:
         first = gui.add_dropdown("x: joint", options, initial_value=options[0], disabled=True)
         second = gui.add_dropdown("y: joint", options, initial_value=options[1], disabled=True)
         grid = gui.add_slider("field grid", min=4, max=40, step=1, initial_value=DEFAULT_GRID)
-    return JointSpaceControls(show, first, second, grid)
+    return JointSpaceControls(folder, show, first, second, grid)

@@ -125,3 +125,9 @@ def test_the_floor_grid_is_spaced_in_round_numbers_near_a_tenth_of_the_reach():
     from ikdp_viz.chain_scene_writer import grid_cell
 
     assert [grid_cell(reach) for reach in (0.986, 1.0, 3.0, 0.3, 12.0)] == [0.1, 0.1, 0.5, 0.05, 2.0]
+
+
+def test_the_joint_space_controls_are_hidden_for_a_robot_and_shown_for_a_planar_arm(app, tiny_checkpoint):
+    assert app.panel.joint_space.folder.visible is False  # the view draws planar arms only
+    with running_app(ikdp.load(tiny_checkpoint), solve_now=False, animation_seconds=0.0) as planar:
+        assert planar.panel.joint_space.folder.visible is True
