@@ -51,7 +51,7 @@ class TrainConfig:
     target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
     lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
     timesteps: int = 80  # diffusion steps T
-    schedule: Literal["linear", "cosine"] = "linear"  # beta schedule
+    schedule: Literal["linear", "cosine", "karras"] = "linear"  # noise schedule; karras: EDM's levels, fine at t=0
     denoiser: Literal["film", "mlp", "paper"] = "film"  # film (ours; chain_film on a robot), mlp (plain), paper
     representation: Literal["cossin", "angle"] = "cossin"  # cossin or angle (paper's theta); robots: joint limits
     prediction: Literal["sample", "epsilon"] = "sample"  # the denoiser predicts the clean sample (x_0) or the noise
@@ -74,6 +74,7 @@ class TrainConfig:
     save_every: int = 1000  # steps between checkpoints
     eval_targets: int = 500  # targets in the accuracy measured at each save
     resume: bool = False  # continue from --output if it exists, with the training config saved in it
+    init_from: str = ""  # start from this checkpoint's weights (same arm and network), fresh optimizer and data
 
 
 RECORD_ONLY = ("step", "seconds", "finished", "torch_version", "threads", "world_size")  # train-record extras
@@ -141,6 +142,19 @@ def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: t
             int(arm.limit_violations(poses.cpu()).sum()) if hasattr(arm, "limit_violations") else 0
         )
     return metrics
+
+
+def load_initial_weights(model: IKDiffusion, path: str) -> None:
+    """--init-from: the (averaged) weights of another run, for a fine-tune; ValueError if they do not fit."""
+    source = model_from_checkpoint(read_checkpoint(Path(path)), path)
+    if source.arm != model.arm:
+        raise ValueError(f"init_from: {path} was trained for another arm ({source.arm!r})")
+    mine, theirs = model.state_dict(), source.state_dict()
+    names = mine.keys() | theirs.keys()
+    mismatched = sorted(n for n in names if n not in mine or n not in theirs or mine[n].shape != theirs[n].shape)
+    if mismatched:
+        raise ValueError(f"init_from: {path} has another network shape (first difference: {mismatched[0]})")
+    model.load_state_dict(theirs)
 
 
 def validate(config: TrainConfig) -> None:
@@ -292,6 +306,8 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     output = Path(config.output)
     torch.manual_seed(config.seed)  # the same initial weights in every process
     model = build_model(config).to(device)
+    if config.init_from and not (config.resume and output.exists()):
+        load_initial_weights(model, config.init_from)
     prior = make_prior(config.prior, model.arm.num_joints)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=0.0)
     scheduler = warmup_cosine(optimizer, config)

@@ -34,6 +34,19 @@ def test_cosine_matches_its_formula():
     assert schedule.alphas_cumprod[49].item() == pytest.approx(f(50) / f(0), rel=1e-5)
 
 
+def test_karras_noise_levels_follow_edm_spacing():
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="karras", sigma_min=0.002, sigma_max=80.0))
+    sigmas = (schedule.sqrt_one_minus_alphas_cumprod / schedule.sqrt_alphas_cumprod).double()
+    assert sigmas[0].item() == pytest.approx(0.002, rel=1e-4)
+    assert sigmas[-1].item() == pytest.approx(80.0, rel=1e-4)
+    ramp = sigmas ** (1 / 7)  # rho = 7: the 7th roots are evenly spaced
+    assert (ramp.diff() - ramp.diff().mean()).abs().max() < 1e-5
+    assert (schedule.alphas_cumprod.diff() < 0).all() and schedule.alphas_cumprod[-1] < 1e-3
+    assert (sigmas < 0.1).sum() >= 20  # the point of it: many steps at low noise
+    with pytest.raises(ValueError, match="sigma_min < sigma_max"):
+        DiffusionSchedule(ScheduleConfig(kind="karras", sigma_min=1.0, sigma_max=0.5))
+
+
 def test_add_noise_is_the_forward_marginal():
     schedule = DiffusionSchedule()
     clean, noise = torch.ones(3, 2), torch.full((3, 2), 2.0)

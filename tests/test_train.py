@@ -47,6 +47,20 @@ def test_training_is_repeatable_and_resumable(tmp_path):
         torch.testing.assert_close(a[name], b[name], rtol=0, atol=0)
 
 
+def test_init_from_starts_at_another_runs_weights_and_refuses_another_shape(tmp_path):
+    first = train(small_config(tmp_path / "a", steps=10))
+    fine_tune = small_config(tmp_path / "b", steps=1, lr=1e-9, warmup=0, init_from=str(first), schedule="karras")
+    start = torch.load(first, weights_only=True)["state_dict"]
+    tuned = torch.load(train(fine_tune), weights_only=True)
+    assert tuned["train"]["init_from"] == str(first)
+    for name, value in start.items():  # one step at lr 1e-9: still the first run's weights
+        torch.testing.assert_close(tuned["state_dict"][name], value, atol=1e-6, rtol=0)
+    with pytest.raises(ValueError, match="init_from: .* another network shape"):
+        train(small_config(tmp_path / "c", hidden=32, init_from=str(first)))
+    with pytest.raises(ValueError, match="init_from: .* another arm"):
+        train(small_config(tmp_path / "d", joints=3, init_from=str(first)))
+
+
 def test_training_writes_tensorboard_curves_beside_the_checkpoint(tmp_path, capsys):
     stale = tmp_path / ".model.pt.zz_9x8y7.tmp"  # a save killed by SIGKILL left it
     stale.write_bytes(b"")
