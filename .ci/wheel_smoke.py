@@ -49,6 +49,9 @@ def core() -> None:
     result = solver.solve([[1.5, 2.0]], num_samples=4, refine_steps=5, generator=torch.Generator().manual_seed(0))
     best = float(result.tip_error.min())
     check(best < 1e-2, f"ikdp.load({DEFAULT_MODEL!r}) solves one target (best tip error {best:.2e})")
+    from ikdp.denoisers.film_compiled import load_kernel
+
+    check(load_kernel() is not None, "the compiled FiLM step builds from the wheel's own C source")
     wheel_version = importlib.metadata.version("ikdp")
     check(ikdp.__version__ == wheel_version, f"ikdp.__version__ {ikdp.__version__} is the wheel's version")
 

@@ -40,7 +40,7 @@ def test_workspace_path_is_bit_identical_to_the_plain_path(kinematic_until, per_
         torch.nn.init.normal_(parameter, std=0.3)
     with torch.inference_mode():
         x, targets, film = film_inputs(model, 7, seed=1, per_row_condition=per_row_condition)
-        workspace = model.denoiser.workspace(7, x)
+        workspace = model.denoiser.workspace(7, x, compiled=False)  # the torch workspace: bit for bit
         plain = model.denoiser.denoise(x, targets, film)
         for _ in range(2):  # a reused workspace gives the same answer again
             fast = model.denoiser.denoise(x, targets, film, workspace=workspace)
@@ -87,4 +87,5 @@ def test_shipped_models_denoise_as_before(name):
             x = model.schedule.add_noise(clean, noise, torch.full((64,), sampler.timesteps[index]))
             expected = previous_denoise(model.denoiser, x, targets, conditions[index])
             fast = model.denoiser.denoise(x, targets, conditions[index], workspace=workspace)
-            torch.testing.assert_close(fast, expected, atol=1e-5, rtol=0)
+            # 5e-5: the compiled kernel (where it builds) sums in another order than torch
+            torch.testing.assert_close(fast, expected, atol=5e-5, rtol=0)

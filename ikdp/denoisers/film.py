@@ -25,6 +25,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
+from ikdp.denoisers.film_compiled import compiled_workspace
 from ikdp.denoisers.film_trunk import condition_network
 from ikdp.refine import planar_dls_step
 from ikdp.representation import AngleRepresentation
@@ -91,15 +92,18 @@ class FiLMDenoiser(nn.Module):
         step = planar_dls_step(bones, miss, self.damping_squared)  # (M, N)
         return torch.cat((x, miss, step), dim=-1)
 
-    def workspace(self, rows: int, like: torch.Tensor) -> FiLMWorkspace | None:
+    def workspace(self, rows: int, like: torch.Tensor, *, compiled: bool = True):
         """Buffers for `denoise(..., workspace=)` on `rows` rows, or None where only the plain path applies.
 
-        The plain path stays for training (out= ops do not record gradients) and for the
-        `angle` representation, whose turn is not a complex product.
+        The compiled kernel (film_compiled.py) when it builds here and `compiled`, else the
+        torch workspace, bit-identical to the plain path. The plain path stays for training
+        (out= ops do not record gradients) and for the `angle` representation, whose turn is
+        not a complex product.
         """
         if torch.is_grad_enabled() or self.representation.kind != "cossin":
             return None
-        return FiLMWorkspace(self, rows, like)
+        fast = compiled_workspace(self, rows, like) if compiled else None
+        return fast if fast is not None else FiLMWorkspace(self, rows, like)
 
     def denoise(
         self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor, *, workspace: FiLMWorkspace | None = None

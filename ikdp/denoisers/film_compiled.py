@@ -1,0 +1,169 @@
+"""The planar FiLM denoiser's step as compiled C (film_kernel.c), built on first use, torch as the fallback.
+
+Why: one target's solve runs the denoiser 80 times on 16 rows. In torch each call is some
+forty ops of a few microseconds' fixed cost each; their arithmetic is a fifth of that. The C
+function does the whole call in one go (docs/BENCHMARKS.md has the times).
+
+The kernel is compiled once per machine with the system's C compiler (`cc`, or $CC) into
+ikdp's cache folder ($IKDP_CACHE, else $XDG_CACHE_HOME/ikdp, else ~/.cache/ikdp), keyed by
+the source, the flags, the compiler and the CPU (it is built with -march=native), and
+written atomically. No compiler, a failed build, IKDP_COMPILED=0, a GPU tensor or float64:
+`compiled_workspace` returns None and the torch path runs, with the same results to float
+rounding (tests/test_film_compiled.py compares them).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+import threading
+from pathlib import Path
+
+import torch
+
+SOURCE = Path(__file__).with_name("film_kernel.c")
+# -ffast-math lets the compiler vectorise expf (SiLU, through glibc's vector maths) and reassociate the
+# sums: results differ from torch's at float rounding, as torch's own kernels differ between machines
+FLAGS = ("-O3", "-march=native", "-ffast-math", "-shared", "-fPIC", "-std=c99")
+
+_lock = threading.Lock()
+_library: ctypes.CDLL | None = None
+_tried = False
+
+
+def cache_folder() -> Path:
+    if os.environ.get("IKDP_CACHE"):
+        return Path(os.environ["IKDP_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "ikdp"
+
+
+def _compiler() -> str | None:
+    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc") or shutil.which("clang")
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith(("model name", "flags")):
+                return line
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def _build(compiler: str) -> Path:
+    version = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30).stdout
+    key = hashlib.sha256(
+        "\0".join((SOURCE.read_text(), " ".join(FLAGS), version, _cpu_name(), platform.machine())).encode()
+    ).hexdigest()[:16]
+    library = cache_folder() / f"film_kernel-{key}.so"
+    if library.exists():
+        return library
+    library.parent.mkdir(parents=True, exist_ok=True)
+    # build beside the target and rename: a concurrent process or a kill never leaves half a library
+    handle, temporary = tempfile.mkstemp(prefix=".film_kernel-", suffix=".so", dir=library.parent)
+    os.close(handle)
+    try:
+        subprocess.run(
+            [compiler, *FLAGS, str(SOURCE), "-o", temporary, "-lm"], check=True, capture_output=True, timeout=120
+        )
+        os.replace(temporary, library)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+    return library
+
+
+def load_kernel() -> ctypes.CDLL | None:
+    """The compiled kernel, built on the first call; None where it cannot be (then never tried again)."""
+    global _library, _tried
+    with _lock:
+        if _tried:
+            return _library
+        _tried = True
+        if os.environ.get("IKDP_COMPILED", "1") == "0":
+            return None
+        compiler = _compiler()
+        if compiler is None:
+            return None
+        try:
+            library = ctypes.CDLL(str(_build(compiler)))
+        except (OSError, subprocess.SubprocessError):
+            return None
+        function = library.ikdp_film_denoise
+        pointer, integer, long = ctypes.c_void_p, ctypes.c_int, ctypes.c_long
+        function.argtypes = [integer] * 4 + [pointer, pointer, long, pointer, long, pointer, ctypes.c_float]
+        function.argtypes += [pointer] * 8
+        function.restype = integer
+        _library = library
+        return library
+
+
+class CompiledFiLMWorkspace:
+    """`FiLMDenoiser.denoise` on M rows through film_kernel.c; the interface of film.FiLMWorkspace."""
+
+    def __init__(self, denoiser, rows: int, like: torch.Tensor, library: ctypes.CDLL):
+        representation, hidden = denoiser.representation, denoiser.config.hidden
+        self.links, self.hidden, self.blocks = representation.num_links, hidden, len(denoiser.blocks)
+        self.rows = rows
+        self.function = library.ikdp_film_denoise
+        contiguous = lambda tensor: tensor.detach().to(torch.float32).contiguous()  # noqa: E731
+        # the weights transposed once, kept alive here: the kernel reads them by address
+        self.lengths = contiguous(denoiser.lengths)
+        self.w_in, self.b_in = contiguous(denoiser.input.weight.t()), contiguous(denoiser.input.bias)
+        self.w_blocks = contiguous(torch.stack([block.weight.t() for block in denoiser.blocks]))
+        self.b_blocks = contiguous(torch.stack([block.bias for block in denoiser.blocks]))
+        self.w_out, self.b_out = contiguous(denoiser.output.weight.t()), contiguous(denoiser.output.bias)
+        self.damping_squared = float(denoiser.damping_squared)
+        num_features = denoiser.input.in_features
+        self.scratch = torch.empty(rows * (num_features + 3 * hidden + 3 * self.links), dtype=torch.float32)
+        self.clean = torch.empty((rows, representation.dim), dtype=torch.float32)
+        # the arguments that do not change between calls, bound once: a call is then a few microseconds
+        pointers = (self.lengths, self.w_in, self.b_in, self.w_blocks, self.b_blocks, self.w_out, self.b_out)
+        self.shape_arguments = (rows, self.links, hidden, self.blocks)
+        lengths, *weights = (tensor.data_ptr() for tensor in pointers)
+        self.weight_arguments = (
+            lengths,
+            self.damping_squared,
+            *weights,
+            self.scratch.data_ptr(),
+            self.clean.data_ptr(),
+        )
+
+    def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
+        """The plain `FiLMDenoiser.denoise`; returns the `clean` buffer (M, D), overwritten by the next call."""
+        if not x.is_contiguous():
+            x = x.contiguous()
+        if target.stride(-1) != 1:
+            target = target.contiguous()
+        if not film[0].is_contiguous():
+            film = film.contiguous()
+        # one target or one condition for every row: stride 0 reads the same row again
+        target_stride = target.stride(0) if target.shape[0] > 1 else 0
+        film_stride = film.stride(0) if film.shape[0] > 1 else 0
+        self.function(
+            *self.shape_arguments,
+            x.data_ptr(),
+            target.data_ptr(),
+            target_stride,
+            film.data_ptr(),
+            film_stride,
+            *self.weight_arguments,
+        )
+        return self.clean
+
+
+def compiled_workspace(denoiser, rows: int, like: torch.Tensor) -> CompiledFiLMWorkspace | None:
+    """A compiled workspace for float32 CPU tensors when the kernel builds here, else None (torch's)."""
+    if like.device.type != "cpu" or like.dtype != torch.float32:
+        return None
+    if rows > 256 and torch.get_num_threads() > 1:  # the kernel runs on one thread; torch spreads large batches
+        return None
+    library = load_kernel()
+    return CompiledFiLMWorkspace(denoiser, rows, like, library) if library is not None else None

@@ -1,0 +1,160 @@
+/* One call of the planar FiLM denoiser (cossin representation) on M rows, in plain C.
+ *
+ * The same arithmetic as FiLMWorkspace.denoise in film.py, written as loops: a solve of one
+ * target calls the denoiser 80 times on 16 rows, where each torch op's fixed cost (a few
+ * microseconds) outweighs its arithmetic; here a whole call is one function with no
+ * allocation. ikdp/denoisers/film_compiled.py builds this file with the system's C compiler
+ * on first use and falls back to the torch path when it cannot.
+ *
+ * Layouts (all float32, row-major, contiguous unless a stride is given):
+ *   x        (M, 2N)      the noisy sample: each link's (cos, sin), not necessarily unit
+ *   target   (M, 2)       rows apart by target_stride floats
+ *   film     (M, B+1, 2, H) rows apart by film_stride floats (0: one condition for all rows);
+ *            [b][0] is block b's scale, [b][1] its shift, [B][0][:F] the feature scales
+ *   w_in     (F, H)       the input layer's weight transposed, F = 2N + 2 + N
+ *   w_blocks (B, H, H)    each block's weight transposed
+ *   w_out    (H, N)       the output layer's weight transposed
+ *   scratch  M * (F + 3H + N + 2N) floats
+ *   clean    (M, 2N)      the estimate of x_0: each unit direction turned by the network's angle
+ */
+#include <math.h>
+#include <stddef.h>
+
+#define TILE 4 /* rows that share each weight loaded */
+
+/* v * sigmoid(v); the exponent is clamped so it stays finite (the build assumes finite math to vectorise expf) */
+static inline float silu(float v) { return v / (1.0f + expf(fminf(-v, 80.0f))); }
+
+typedef float vec8 __attribute__((vector_size(32))); /* GCC/Clang vectors: AVX where the CPU has it */
+
+static inline vec8 load8(const float *p) {
+    vec8 v;
+    __builtin_memcpy(&v, p, sizeof v);
+    return v;
+}
+
+static inline void store8(float *p, vec8 v) { __builtin_memcpy(p, &v, sizeof v); }
+
+/* out[r][j] = bias[j] + sum_k in[r][k] * weight[k][j], for `rows` rows of `k_count` inputs.
+ * Four rows by sixteen outputs are summed in registers over all k, so each weight is loaded
+ * once per four rows and nothing is stored until the sums are done (the layers are 128 wide). */
+static void affine(int rows, const float *restrict in, int k_count, const float *restrict weight,
+                   const float *restrict bias, int n, float *restrict out) {
+    int r = 0;
+    if (n % 16 == 0) {
+        for (; r + TILE <= rows; r += TILE) {
+            const float *i0 = in + (size_t)r * k_count, *i1 = i0 + k_count, *i2 = i1 + k_count, *i3 = i2 + k_count;
+            for (int j = 0; j < n; j += 16) {
+                const vec8 bias_low = load8(bias + j), bias_high = load8(bias + j + 8);
+                vec8 a0 = bias_low, b0 = bias_high, a1 = bias_low, b1 = bias_high;
+                vec8 a2 = bias_low, b2 = bias_high, a3 = bias_low, b3 = bias_high;
+                for (int k = 0; k < k_count; k++) {
+                    const vec8 low = load8(weight + (size_t)k * n + j), high = load8(weight + (size_t)k * n + j + 8);
+                    a0 += i0[k] * low;
+                    b0 += i0[k] * high;
+                    a1 += i1[k] * low;
+                    b1 += i1[k] * high;
+                    a2 += i2[k] * low;
+                    b2 += i2[k] * high;
+                    a3 += i3[k] * low;
+                    b3 += i3[k] * high;
+                }
+                float *o = out + (size_t)r * n + j;
+                store8(o, a0), store8(o + 8, b0), o += n;
+                store8(o, a1), store8(o + 8, b1), o += n;
+                store8(o, a2), store8(o + 8, b2), o += n;
+                store8(o, a3), store8(o + 8, b3);
+            }
+        }
+    }
+    for (; r < rows; r++) {
+        float *restrict o = out + (size_t)r * n;
+        const float *i = in + (size_t)r * k_count;
+        for (int j = 0; j < n; j++) o[j] = bias[j];
+        for (int k = 0; k < k_count; k++) {
+            const float a = i[k];
+            const float *restrict w = weight + (size_t)k * n;
+            for (int j = 0; j < n; j++) o[j] += a * w[j];
+        }
+    }
+}
+
+/* features of one row: [x, miss, DLS step] times the feature scales; also the unit directions */
+static void row_features(int links, const float *x, const float *target, const float *lengths,
+                         float damping_squared, const float *feature_scale, float *unit, float *features) {
+    const int dim = 2 * links;
+    float tip_x = 0.0f, tip_y = 0.0f, xx = 0.0f, xy = 0.0f, yy = 0.0f;
+    for (int n = 0; n < links; n++) {
+        float cx = x[2 * n], cy = x[2 * n + 1];
+        float norm = sqrtf(cx * cx + cy * cy);
+        if (norm < 1e-12f) norm = 1e-12f;
+        unit[2 * n] = cx / norm;
+        unit[2 * n + 1] = cy / norm;
+        float bx = unit[2 * n] * lengths[n], by = unit[2 * n + 1] * lengths[n];
+        tip_x += bx;
+        tip_y += by;
+        xx += bx * bx;
+        xy += bx * by;
+        yy += by * by;
+    }
+    /* refine.planar_dls_step: adj(J J^T + lambda^2 I) = sum_n b_n b_n^T + lambda^2 I */
+    const float miss_x = target[0] - tip_x, miss_y = target[1] - tip_y;
+    const float a = xx + damping_squared, d = yy + damping_squared;
+    const float determinant = a * d - xy * xy;
+    const float solved_x = (a * miss_x + xy * miss_y) / determinant;
+    const float solved_y = (xy * miss_x + d * miss_y) / determinant;
+    for (int i = 0; i < dim; i++) features[i] = x[i] * feature_scale[i];
+    features[dim] = miss_x * feature_scale[dim];
+    features[dim + 1] = miss_y * feature_scale[dim + 1];
+    for (int n = 0; n < links; n++) {
+        float bx = unit[2 * n] * lengths[n], by = unit[2 * n + 1] * lengths[n];
+        /* bone n's Jacobian column is the bone turned by 90 degrees: (-b_y, b_x) */
+        features[dim + 2 + n] = (-by * solved_x + bx * solved_y) * feature_scale[dim + 2 + n];
+    }
+}
+
+int ikdp_film_denoise(int rows, int links, int hidden, int blocks, const float *x, const float *target,
+                      long target_stride, const float *film, long film_stride, const float *lengths,
+                      float damping_squared, const float *w_in, const float *b_in, const float *w_blocks,
+                      const float *b_blocks, const float *w_out, const float *b_out, float *scratch,
+                      float *clean) {
+    const int dim = 2 * links, num_features = dim + 2 + links;
+    float *features = scratch;                                  /* (M, F) */
+    float *h = features + (size_t)rows * num_features;          /* (M, H) */
+    float *modulated = h + (size_t)rows * hidden;               /* (M, H) */
+    float *block_output = modulated + (size_t)rows * hidden;    /* (M, H) */
+    float *turn = block_output + (size_t)rows * hidden;         /* (M, N) */
+    float *unit = turn + (size_t)rows * links;                  /* (M, 2N) */
+    const long scale_offset = (long)blocks * 2 * hidden;
+
+    for (int r = 0; r < rows; r++) {
+        const float *row_film = film + (size_t)r * film_stride;
+        row_features(links, x + (size_t)r * dim, target + (size_t)r * target_stride, lengths, damping_squared,
+                     row_film + scale_offset, unit + (size_t)r * dim, features + (size_t)r * num_features);
+    }
+    affine(rows, features, num_features, w_in, b_in, hidden, h);
+    for (int b = 0; b < blocks; b++) {
+        for (int r = 0; r < rows; r++) {
+            const float *scale = film + (size_t)r * film_stride + (size_t)b * 2 * hidden;
+            const float *shift = scale + hidden;
+            float *hr = h + (size_t)r * hidden, *mr = modulated + (size_t)r * hidden;
+            for (int j = 0; j < hidden; j++) mr[j] = silu(shift[j] + hr[j] * scale[j]);
+        }
+        affine(rows, modulated, hidden, w_blocks + (size_t)b * hidden * hidden, b_blocks + (size_t)b * hidden,
+               hidden, block_output);
+        for (size_t i = 0; i < (size_t)rows * hidden; i++) h[i] += block_output[i];
+    }
+    for (size_t i = 0; i < (size_t)rows * hidden; i++) h[i] = silu(h[i]);
+    affine(rows, h, hidden, w_out, b_out, links, turn);
+    /* representation.turn: each unit (cos, sin) times e^(i turn) */
+    for (int r = 0; r < rows; r++) {
+        for (int n = 0; n < links; n++) {
+            const float angle = turn[(size_t)r * links + n];
+            const float c = cosf(angle), s = sinf(angle);
+            const float ux = unit[(size_t)r * dim + 2 * n], uy = unit[(size_t)r * dim + 2 * n + 1];
+            clean[(size_t)r * dim + 2 * n] = ux * c - uy * s;
+            clean[(size_t)r * dim + 2 * n + 1] = ux * s + uy * c;
+        }
+    }
+    return 0;
+}
