@@ -219,7 +219,9 @@ class ChainSceneWriter(SceneWriter):
         hand_position, hand_wxyz = gizmo_pose(arm, poses[highlight])
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
         if self.panel.show_trail.value and state > 0:
-            points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
+            points, segment_colors = trail_until(
+                solved.trail_points, self._trail_colors, state, most_states=self.trail_states_limit(state)
+            )
             self.trail.points, self.trail.colors, self.trail.visible = points, segment_colors, True
         else:
             self.trail.visible = False

@@ -170,9 +170,20 @@ def trail_colors(colors: np.ndarray, num_links: int) -> np.ndarray:
     return per_segment.reshape(num_states, num_samples * num_links, 2, 3)
 
 
-def trail_until(points: np.ndarray, colors: np.ndarray, state: int) -> tuple[np.ndarray, np.ndarray]:
-    """The polylines of states 0..state, the current pose's included, as (M, 2, 3) segments and colours."""
-    return points[: state + 1].reshape(-1, 2, 3), colors[: state + 1].reshape(-1, 2, 3)
+def trail_until(
+    points: np.ndarray, colors: np.ndarray, state: int, *, most_states: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The polylines of states 0..state, the current pose's included, as (M, 2, 3) segments and colours.
+
+    With `most_states`, the light trail drawn while an animation plays: of all S + 1 states only
+    every s-th (a fixed grid, so drawn lines stay put from frame to frame) and the current one,
+    at most `most_states` in all. Software WebGL pays for every segment in every frame.
+    """
+    if most_states is None:
+        return points[: state + 1].reshape(-1, 2, 3), colors[: state + 1].reshape(-1, 2, 3)
+    stride = -(-len(points) // (most_states - 1))  # ceil: the whole trail's grid fits most_states - 1
+    chosen = np.append(np.arange(0, state, stride), state)
+    return points[chosen].reshape(-1, 2, 3), colors[chosen].reshape(-1, 2, 3)
 
 
 def yaw_quaternions(angles: np.ndarray) -> np.ndarray:

@@ -54,6 +54,7 @@ ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
+PLAYING_TRAIL_STATES = 12  # the trail while an animation plays: every s-th state; all once it stops
 
 
 def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -180,6 +181,9 @@ class SceneWriter:
         self.joint_space = JointSpaceNodes(server, panel.joint_space, camera_fit)  # the torus beside the arm
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
+        # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
+        # them, 27-29 without (docs/VIZ.md)
+        server.scene.configure_default_lights(cast_shadow=False)
         self._build_static_scene()  # before any thread exists: the app's constructor is the only writer yet
 
     # -------------------------------------------------------------- the queue
@@ -418,7 +422,9 @@ class SceneWriter:
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
         if self.panel.show_trail.value:
-            points, segment_colors = trail_until(solved.trail_points, self._trail_colors, state)
+            points, segment_colors = trail_until(
+                solved.trail_points, self._trail_colors, state, most_states=self.trail_states_limit(state)
+            )
             self.trail.points = points
             self.trail.colors = segment_colors
             self.trail.visible = True
@@ -443,6 +449,15 @@ class SceneWriter:
         self.refined_lines.visible = final_shown
         self.refined_tips.visible = final_shown
         self.joint_space.draw(self.solver, solved, state, colors, highlight)
+
+    def trail_states_limit(self, state: int) -> int | None:
+        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end.
+
+        Software WebGL draws every segment in every frame: the full trail at K = 16 (5,184
+        segments) halves the page's frame rate while the animation runs (docs/VIZ.md).
+        """
+        animation = self.animation
+        return PLAYING_TRAIL_STATES if animation is not None and state < animation.last else None
 
     def _write_play_label(self) -> None:
         playing = self.animation is not None

@@ -146,6 +146,21 @@ def test_trail_layers_each_state_above_the_one_before_and_colours_it_by_its_stat
     assert segments.shape == (12, 2, 3)
 
 
+def test_the_light_trail_keeps_a_fixed_grid_of_states_and_the_current_one():
+    states, segments_per_state = 81, 4
+    points = np.broadcast_to(
+        np.arange(states, dtype=np.float32)[:, None, None, None], (states, segments_per_state, 2, 3)
+    )
+    colors = np.zeros((states, segments_per_state, 2, 3), np.uint8)
+    drawn_states = lambda state: np.unique(trail_until(points, colors, state, most_states=12)[0][..., 0])  # noqa: E731
+    # the grid (every 8th state: 81 states in 11) below the current state, from the start: nothing jumps
+    assert list(drawn_states(0)) == [0] and list(drawn_states(5)) == [0, 5]
+    assert list(drawn_states(20)) == [0, 8, 16, 20] and list(drawn_states(21)) == [0, 8, 16, 21]  # the grid stays put
+    assert len(drawn_states(80)) <= 12 and drawn_states(80)[-1] == 80
+    assert list(drawn_states(8)) == [0, 8]
+    assert len(trail_until(points, colors, 80)[0]) == states * segments_per_state  # no limit: every state
+
+
 def test_sample_colors_give_the_highlighted_sample_the_accent_ramp():
     colors = sample_colors(5, 3, highlight=2)
     assert colors.shape == (5, 3, 3)
