@@ -6,9 +6,9 @@ Run from the repository root, with one torch thread (docs/BENCHMARKS.md, "Core v
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python -m benchmarks.core_benchmark --quick   # a smoke test
 
 (a) latency: one target, K=16, the 80-step DDPM with the trajectory, beside batched damped
-    least squares (16 random starts, 10 iterations) and the same solve on the plain denoiser
-    path (no workspace), all timed round-robin in the same run so the machine's load hits
-    every case alike; also K=1, K=64, DDIM-20, DPM-Solver++(2M)-10 and the viewer's
+    least squares (16 random starts, 10 iterations), the same solve on the torch workspace (no
+    compiled step) and on the plain denoiser path (no workspace), all timed round-robin in the
+    same run so the machine's load hits every case alike; also K=1, K=64, DDIM-20, DPM-Solver++(2M)-10 and the viewer's
     end-to-end solve (trajectory + x̂0 estimates + 5 refinement steps);
 (b) few-step samplers: DDIM and DPM-Solver++(2M) at 5, 10 and 20 steps (and DDPM-80 for
     reference), raw median tip error, K=1, targets from each model's own prior;
@@ -41,6 +41,7 @@ import tyro
 import ikdp
 from benchmarks.pk_chain import PkSettings
 from ikdp.arm import uniform_angles
+from ikdp.denoisers.film_compiled import load_kernel
 from ikdp.refine import damped_least_squares
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -83,18 +84,23 @@ def round_robin(cases: dict, *, repeats: int, warmup: int) -> dict[str, list[flo
     return seconds
 
 
-def plain_denoiser(solver: ikdp.Solver):
-    """The same solver's calls on the plain denoiser path: no workspace, so every op allocates."""
+def denoiser_path(solver: ikdp.Solver, path: str):
+    """The same solver's calls on another denoiser path: "plain" (no workspace: every op allocates) or
+    "torch" (the torch workspace: buffers allocated once, but not the compiled step)."""
     denoiser = solver.model.denoiser
+    default = type(denoiser).workspace
 
-    class Plain:
+    class Path:
         def __enter__(self):
-            denoiser.workspace = lambda rows, like: None
+            if path == "plain":
+                denoiser.workspace = lambda rows, like: None
+            else:
+                denoiser.workspace = lambda rows, like: default(denoiser, rows, like, compiled=False)
 
         def __exit__(self, *errors):
             del denoiser.workspace
 
-    return Plain()
+    return Path()
 
 
 def measure_latency(solver: ikdp.Solver, config: CoreBenchmarkConfig) -> dict:
@@ -111,11 +117,16 @@ def measure_latency(solver: ikdp.Solver, config: CoreBenchmarkConfig) -> dict:
     ddpm16 = solve(num_samples=16, return_trajectory=True)
 
     def ddpm16_plain():
-        with plain_denoiser(solver):
+        with denoiser_path(solver, "plain"):
+            return ddpm16()
+
+    def ddpm16_torch():
+        with denoiser_path(solver, "torch"):
             return ddpm16()
 
     cases = {
         "DDPM-80, K=16, trajectory": ddpm16,
+        "DDPM-80, K=16, trajectory, torch workspace": ddpm16_torch,
         "DDPM-80, K=16, trajectory, plain path": ddpm16_plain,
         "batched DLS, 16 starts x 10 iterations": dls,
         "DDPM-80, K=1, trajectory": solve(num_samples=1, return_trajectory=True),
@@ -278,6 +289,7 @@ def main(argv: list[str] | None = None) -> None:
         "cpu_count": os.cpu_count(),
         "load_average": os.getloadavg(),
         "python": platform.python_version(),
+        "compiled_film_step": load_kernel() is not None,  # else the first row ran the torch workspace too
     }
     output = REPO_ROOT / config.output
     output.parent.mkdir(parents=True, exist_ok=True)
