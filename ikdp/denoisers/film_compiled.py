@@ -97,12 +97,24 @@ def load_kernel() -> ctypes.CDLL | None:
         except (OSError, subprocess.SubprocessError):
             return None
         function = library.ikdp_film_denoise
-        pointer, integer, long = ctypes.c_void_p, ctypes.c_int, ctypes.c_long
-        function.argtypes = [integer] * 4 + [pointer, pointer, long, pointer, long, pointer, ctypes.c_float]
-        function.argtypes += [pointer] * 8
-        function.restype = integer
+        pointer, long = ctypes.c_void_p, ctypes.c_long
+        function.argtypes = [ctypes.POINTER(FilmStep), pointer, pointer, long, pointer, long]
+        function.restype = ctypes.c_int
         _library = library
         return library
+
+
+class FilmStep(ctypes.Structure):
+    """film_kernel.c's FilmStep: what stays the same from call to call, converted once, not per call."""
+
+    _fields_ = [
+        *((name, ctypes.c_int) for name in ("rows", "links", "hidden", "blocks")),
+        ("lengths", ctypes.c_void_p),
+        ("damping_squared", ctypes.c_float),
+        *((name, ctypes.c_void_p) for name in ("w_in", "b_in", "w_blocks", "b_blocks", "w_out", "b_out")),
+        ("scratch", ctypes.c_void_p),
+        ("clean", ctypes.c_void_p),
+    ]
 
 
 class CompiledFiLMWorkspace:
@@ -124,17 +136,14 @@ class CompiledFiLMWorkspace:
         num_features = denoiser.input.in_features
         self.scratch = torch.empty(rows * (num_features + 3 * hidden + 3 * self.links), dtype=torch.float32)
         self.clean = torch.empty((rows, representation.dim), dtype=torch.float32)
-        # the arguments that do not change between calls, bound once: a call is then a few microseconds
-        pointers = (self.lengths, self.w_in, self.b_in, self.w_blocks, self.b_blocks, self.w_out, self.b_out)
-        self.shape_arguments = (rows, self.links, hidden, self.blocks)
-        lengths, *weights = (tensor.data_ptr() for tensor in pointers)
-        self.weight_arguments = (
-            lengths,
-            self.damping_squared,
-            *weights,
-            self.scratch.data_ptr(),
-            self.clean.data_ptr(),
-        )
+        # the arguments that do not change between calls, converted once: a call then passes six
+        address = lambda tensor: tensor.data_ptr()  # noqa: E731
+        self.step = FilmStep(
+            rows, self.links, hidden, self.blocks, address(self.lengths), self.damping_squared,
+            *(address(tensor) for tensor in (self.w_in, self.b_in, self.w_blocks, self.b_blocks)),
+            address(self.w_out), address(self.b_out), address(self.scratch), address(self.clean),
+        )  # fmt: skip
+        self.step_pointer = ctypes.byref(self.step)
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
         """The plain `FiLMDenoiser.denoise`; returns the `clean` buffer (M, D), overwritten by the next call."""
@@ -142,20 +151,12 @@ class CompiledFiLMWorkspace:
             x = x.contiguous()
         if target.stride(-1) != 1:
             target = target.contiguous()
-        if not film[0].is_contiguous():
+        if not film.is_contiguous() and not film[0].is_contiguous():  # rows may repeat (stride 0), not scatter
             film = film.contiguous()
         # one target or one condition for every row: stride 0 reads the same row again
         target_stride = target.stride(0) if target.shape[0] > 1 else 0
         film_stride = film.stride(0) if film.shape[0] > 1 else 0
-        self.function(
-            *self.shape_arguments,
-            x.data_ptr(),
-            target.data_ptr(),
-            target_stride,
-            film.data_ptr(),
-            film_stride,
-            *self.weight_arguments,
-        )
+        self.function(self.step_pointer, x.data_ptr(), target.data_ptr(), target_stride, film.data_ptr(), film_stride)
         return self.clean
 
 

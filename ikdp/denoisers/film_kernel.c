@@ -49,7 +49,9 @@ static void affine(int rows, const float *restrict in, int k_count, const float 
                 vec8 a0 = bias_low, b0 = bias_high, a1 = bias_low, b1 = bias_high;
                 vec8 a2 = bias_low, b2 = bias_high, a3 = bias_low, b3 = bias_high;
                 for (int k = 0; k < k_count; k++) {
-                    const vec8 low = load8(weight + (size_t)k * n + j), high = load8(weight + (size_t)k * n + j + 8);
+                    vec8 low = load8(weight + (size_t)k * n + j), high = load8(weight + (size_t)k * n + j + 8);
+                    /* keep the weights in registers: folded into each multiply-add they were loaded 4 times */
+                    __asm__("" : "+x"(low), "+x"(high));
                     a0 += i0[k] * low;
                     b0 += i0[k] * high;
                     a1 += i1[k] * low;
@@ -113,11 +115,22 @@ static void row_features(int links, const float *x, const float *target, const f
     }
 }
 
-int ikdp_film_denoise(int rows, int links, int hidden, int blocks, const float *x, const float *target,
-                      long target_stride, const float *film, long film_stride, const float *lengths,
-                      float damping_squared, const float *w_in, const float *b_in, const float *w_blocks,
-                      const float *b_blocks, const float *w_out, const float *b_out, float *scratch,
-                      float *clean) {
+/* What stays the same from call to call, set once by the caller (film_compiled.py mirrors it) */
+typedef struct {
+    int rows, links, hidden, blocks;
+    const float *lengths;
+    float damping_squared;
+    const float *w_in, *b_in, *w_blocks, *b_blocks, *w_out, *b_out;
+    float *scratch, *clean;
+} FilmStep;
+
+int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target, long target_stride,
+                      const float *film, long film_stride) {
+    const int rows = step->rows, links = step->links, hidden = step->hidden, blocks = step->blocks;
+    const float *lengths = step->lengths, *w_in = step->w_in, *b_in = step->b_in, *w_blocks = step->w_blocks;
+    const float *b_blocks = step->b_blocks, *w_out = step->w_out, *b_out = step->b_out;
+    const float damping_squared = step->damping_squared;
+    float *scratch = step->scratch, *clean = step->clean;
     const int dim = 2 * links, num_features = dim + 2 + links;
     float *features = scratch;                                  /* (M, F) */
     float *h = features + (size_t)rows * num_features;          /* (M, H) */
