@@ -169,7 +169,7 @@ def measure_few_step(name: str, config: CoreBenchmarkConfig) -> dict:
 
 def measure_batch(solver: ikdp.Solver, targets: torch.Tensor, config: CoreBenchmarkConfig) -> dict:
     rows = {}
-    for sampler, steps in (("dpmpp2m", 5), ("dpmpp2m", 10), ("ddim", 10)):
+    for sampler, steps in (("dpmpp2m", 3), ("dpmpp2m", 5), ("dpmpp2m", 10), ("ddim", 3), ("ddim", 10)):
 
         def solve(sampler=sampler, steps=steps):
             return solver.solve(
