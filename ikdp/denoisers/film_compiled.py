@@ -48,13 +48,17 @@ def _compiler() -> str | None:
 
 
 def _cpu_name() -> str:
+    """The CPU's model and instruction-set flags: a library built with -march=native runs only where they match."""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith(("model name", "flags")):
-                return line
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
     except OSError:
-        pass
-    return platform.processor()
+        return platform.processor()
+    first = {}
+    for line in lines:
+        name = line.split(":", 1)[0].strip()
+        if name in ("model name", "flags") and name not in first:
+            first[name] = line
+    return "\n".join(first.values()) or platform.processor()
 
 
 def _build(compiler: str) -> Path:
