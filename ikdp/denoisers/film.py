@@ -25,7 +25,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
-from ikdp.denoisers.film_compiled import compiled_workspace
+from ikdp.denoisers.film_compiled import CompiledFiLMWorkspace, compiled_workspace
 from ikdp.denoisers.film_trunk import condition_network
 from ikdp.refine import planar_dls_step
 from ikdp.representation import AngleRepresentation
@@ -92,7 +92,9 @@ class FiLMDenoiser(nn.Module):
         step = planar_dls_step(bones, miss, self.damping_squared)  # (M, N)
         return torch.cat((x, miss, step), dim=-1)
 
-    def workspace(self, rows: int, like: torch.Tensor, *, compiled: bool = True):
+    def workspace(
+        self, rows: int, like: torch.Tensor, *, compiled: bool = True
+    ) -> CompiledFiLMWorkspace | FiLMWorkspace | None:
         """Buffers for `denoise(..., workspace=)` on `rows` rows, or None where only the plain path applies.
 
         The compiled kernel (film_compiled.py) when it builds here and `compiled`, else the
@@ -106,7 +108,12 @@ class FiLMDenoiser(nn.Module):
         return fast if fast is not None else FiLMWorkspace(self, rows, like)
 
     def denoise(
-        self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor, *, workspace: FiLMWorkspace | None = None
+        self,
+        x: torch.Tensor,
+        target: torch.Tensor,
+        film: torch.Tensor,
+        *,
+        workspace: CompiledFiLMWorkspace | FiLMWorkspace | None = None,
     ) -> torch.Tensor:
         """x: (M, D), target: (M, 2), film: condition() rows -> the estimate of x_0, (M, D).
 

@@ -124,10 +124,9 @@ class FilmStep(ctypes.Structure):
 class CompiledFiLMWorkspace:
     """`FiLMDenoiser.denoise` on M rows through film_kernel.c; the interface of film.FiLMWorkspace."""
 
-    def __init__(self, denoiser, rows: int, like: torch.Tensor, library: ctypes.CDLL):
+    def __init__(self, denoiser, rows: int, library: ctypes.CDLL):
         representation, hidden = denoiser.representation, denoiser.config.hidden
-        self.links, self.hidden, self.blocks = representation.num_links, hidden, len(denoiser.blocks)
-        self.rows = rows
+        links, blocks = representation.num_links, len(denoiser.blocks)
         self.function = library.ikdp_film_denoise
         contiguous = lambda tensor: tensor.detach().to(torch.float32).contiguous()  # noqa: E731
         # the weights transposed once, kept alive here: the kernel reads them by address
@@ -136,14 +135,13 @@ class CompiledFiLMWorkspace:
         self.w_blocks = contiguous(torch.stack([block.weight.t() for block in denoiser.blocks]))
         self.b_blocks = contiguous(torch.stack([block.bias for block in denoiser.blocks]))
         self.w_out, self.b_out = contiguous(denoiser.output.weight.t()), contiguous(denoiser.output.bias)
-        self.damping_squared = float(denoiser.damping_squared)
         num_features = denoiser.input.in_features
-        self.scratch = torch.empty(rows * (num_features + 3 * hidden + 3 * self.links), dtype=torch.float32)
+        self.scratch = torch.empty(rows * (num_features + 3 * hidden + 3 * links), dtype=torch.float32)
         self.clean = torch.empty((rows, representation.dim), dtype=torch.float32)
         # the arguments that do not change between calls, converted once: a call then passes six
         address = lambda tensor: tensor.data_ptr()  # noqa: E731
         self.step = FilmStep(
-            rows, self.links, hidden, self.blocks, address(self.lengths), self.damping_squared,
+            rows, links, hidden, blocks, address(self.lengths), float(denoiser.damping_squared),
             *(address(tensor) for tensor in (self.w_in, self.b_in, self.w_blocks, self.b_blocks)),
             address(self.w_out), address(self.b_out), address(self.scratch), address(self.clean),
         )  # fmt: skip
@@ -171,4 +169,4 @@ def compiled_workspace(denoiser, rows: int, like: torch.Tensor) -> CompiledFiLMW
     if rows > 256 and torch.get_num_threads() > 1:  # the kernel runs on one thread; torch spreads large batches
         return None
     library = load_kernel()
-    return CompiledFiLMWorkspace(denoiser, rows, like, library) if library is not None else None
+    return CompiledFiLMWorkspace(denoiser, rows, library) if library is not None else None
