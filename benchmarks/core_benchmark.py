@@ -12,8 +12,9 @@ Run from the repository root, with one torch thread (docs/BENCHMARKS.md, "Core v
     end-to-end solve (trajectory + x̂0 estimates + 5 refinement steps);
 (b) few-step samplers: DDIM and DPM-Solver++(2M) at 5, 10 and 20 steps (and DDPM-80 for
     reference), raw median tip error, K=1, targets from each model's own prior;
-(c) batch solving: 500 targets, K=16, few-step samplers + 5 refinement steps, time per target
-    and share of targets with a pose within 1e-4, beside pytorch_kinematics' PseudoInverseIK
+(c) batch solving: 500 targets, K=16, few-step samplers (1 to 10 steps) + 5 refinement steps,
+    time per target, share of targets with a pose within 1e-4 and how many of its returned poses
+    are, beside pytorch_kinematics' PseudoInverseIK
     (benchmarks/pk_chain.py, early stopping on) at several retry counts, run as a subprocess so
     its import stays out of this process.
 
@@ -169,7 +170,10 @@ def measure_few_step(name: str, config: CoreBenchmarkConfig) -> dict:
 
 def measure_batch(solver: ikdp.Solver, targets: torch.Tensor, config: CoreBenchmarkConfig) -> dict:
     rows = {}
-    for sampler, steps in (("dpmpp2m", 3), ("dpmpp2m", 5), ("dpmpp2m", 10), ("ddim", 3), ("ddim", 10)):
+    # DDIM-1 is the denoiser's one-shot x̂0 from noise (raw median ~0.17 on ikdp_n4): the refinement does the
+    # rest; it is here to show how much of the work the diffusion steps do, not as IKDP's answer
+    few_steps = (("dpmpp2m", 2), ("dpmpp2m", 3), ("dpmpp2m", 5), ("dpmpp2m", 10), ("ddim", 1), ("ddim", 2), ("ddim", 3))
+    for sampler, steps in few_steps + (("ddim", 10),):
 
         def solve(sampler=sampler, steps=steps):
             return solver.solve(
@@ -182,12 +186,21 @@ def measure_batch(solver: ikdp.Solver, targets: torch.Tensor, config: CoreBenchm
             )
 
         seconds = round_robin({"solve": solve}, repeats=config.batch_repeats, warmup=1)["solve"]
-        best = solve().tip_error.double().min(dim=1).values
+        errors = solve().tip_error.double()
         rows[f"{sampler}-{steps} + refine {config.refine_steps}"] = {
             "median_us_per_target": 1e6 * statistics.median(seconds) / len(targets),
-            "share_within_tolerance": (best <= SUCCESS_TOLERANCE).double().mean().item(),
+            **tolerance_shares(errors),
         }
     return rows
+
+
+def tolerance_shares(errors: torch.Tensor) -> dict:
+    """errors (B, K) -> the share of targets with a pose within tolerance, and how many of its K poses are."""
+    within = errors <= SUCCESS_TOLERANCE
+    return {
+        "share_within_tolerance": within.any(dim=1).double().mean().item(),
+        "solutions_per_target": within.sum(dim=1).double().mean().item(),
+    }
 
 
 def run_pytorch_kinematics(targets: torch.Tensor, lengths, retries: int, config: CoreBenchmarkConfig) -> dict:
@@ -213,7 +226,7 @@ def run_pytorch_kinematics(targets: torch.Tensor, lengths, retries: int, config:
     errors = (ikdp.tip_position(headings, torch.tensor(lengths).double()) - targets[:, None].double()).norm(dim=-1)
     return {
         "median_us_per_target": 1e6 * statistics.median(result["seconds"]) / len(targets),
-        "share_within_tolerance": (errors.min(dim=1).values <= SUCCESS_TOLERANCE).double().mean().item(),
+        **tolerance_shares(errors),
         "iterations_run": result["iterations"],
         "version": result["library_version"],
     }
@@ -271,13 +284,18 @@ def main(argv: list[str] | None = None) -> None:
             )
     results["batch"] = batch
     rows = [
-        (name, f"{row['median_us_per_target']:.1f}", f"{100 * row['share_within_tolerance']:.2f}")
+        (
+            name,
+            f"{row['median_us_per_target']:.1f}",
+            f"{100 * row['share_within_tolerance']:.2f}",
+            f"{row['solutions_per_target']:.2f}",
+        )
         for group in batch.values()
         for name, row in group.items()
     ]
     print_table(
         f"(c) {config.batch_targets} targets, K={config.batch_samples}, one thread",
-        ("solver", "median us/target", f"% within {SUCCESS_TOLERANCE:g}"),
+        ("solver", "median us/target", f"% within {SUCCESS_TOLERANCE:g}", "poses within, per target"),
         rows,
     )
 

@@ -139,6 +139,10 @@ class PlanarArm:
         """Put poses back in their canonical range after a step: headings wrap into (-pi, pi]."""
         return wrap_angle(headings)
 
+    def blocked_by_limits(self, headings: torch.Tensor, step: torch.Tensor) -> None:
+        """No joint is ever held by a limit: headings wrap (ChainArm answers with a mask)."""
+        return None
+
     # --- targets -----------------------------------------------------------------------------
     def validate_targets(self, targets) -> torch.Tensor:
         """Array-like (B, 2) -> float32 tensor (B, 2); ValueError naming the problem otherwise."""

@@ -452,6 +452,12 @@ class ChainArm:
         clamped = torch.minimum(torch.maximum(joints, c["limits"][:, 0]), c["limits"][:, 1])
         return torch.where(c["continuous"], wrap_angle(joints), clamped)
 
+    def blocked_by_limits(self, joints: torch.Tensor, step: torch.Tensor) -> torch.Tensor:
+        """(..., J) joints, a proposed step -> (..., J) True where a joint on a limit is pushed further out."""
+        c = self._constants_like(joints)
+        pushed_out = ((joints <= c["limits"][:, 0]) & (step < 0)) | ((joints >= c["limits"][:, 1]) & (step > 0))
+        return pushed_out & ~c["continuous"]
+
     def limit_violations(self, joints: torch.Tensor, *, tolerance: float = 1e-6) -> torch.Tensor:
         """(..., J) -> (...) how many joints lie outside their limits (continuous joints never do)."""
         c = self._constants_like(joints)

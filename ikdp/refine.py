@@ -78,7 +78,9 @@ def damped_least_squares(
     """joints (..., J), targets (..., target_dim) -> refined joints (..., J), within the arm's limits.
 
     Each step is followed by `arm.normalize_joints` (headings wrap, limited joints are
-    clamped), so every refined pose respects the limits. Runs in float64: the last steps
+    clamped), so every refined pose respects the limits. Where a joint already on a limit is
+    pushed further out (`arm.blocked_by_limits`), the step is also solved without it, and each
+    pose keeps the better of the two (`better_of`). Runs in float64: the last steps
     correct errors near float32's resolution.
     """
     if not isinstance(steps, int) or steps < 0:
@@ -89,5 +91,27 @@ def damped_least_squares(
     max_position = max_miss_fraction * arm.span
     for _ in range(steps):
         error = clamp_task_error(arm.task_error(joints, targets), arm.position_dim, max_position, math.pi / 4)
-        joints = arm.normalize_joints(joints + dls_step(arm.jacobian(joints), error, damping**2))
+        jacobian = arm.jacobian(joints)
+        step = dls_step(jacobian, error, damping**2)
+        moved = arm.normalize_joints(joints + step)
+        blocked = arm.blocked_by_limits(joints, step)
+        if blocked is not None and bool(blocked.any()):
+            held_step = dls_step(jacobian * ~blocked[..., None, :], error, damping**2)  # blocked columns zeroed
+            moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step))
+        joints = moved
     return joints.to(dtype)
+
+
+def better_of(arm, targets: torch.Tensor, clamped: torch.Tensor, without_blocked: torch.Tensor) -> torch.Tensor:
+    """Per pose, whichever candidate misses the target by less (the task error's norm, what DLS minimises).
+
+    `clamped` took the full step, then the limits clipped it; `without_blocked` solved the step
+    again with the joints that sat on a limit and were pushed further held still (an active
+    set), so the others no longer count on a move the clamp undoes. Neither wins everywhere: on
+    the Panda the active set alone took K=16 + 5 steps from 99.2 to 99.8 % of targets within
+    1 mm and 1 degree, but left some poses stalled that the clamped step moved on; the better
+    of the two kept 99.8 % with more valid poses per target (docs/ROBOTS.md).
+    """
+    clamped_miss = arm.task_error(clamped, targets).norm(dim=-1)
+    without_miss = arm.task_error(without_blocked, targets).norm(dim=-1)
+    return torch.where((without_miss < clamped_miss)[..., None], without_blocked, clamped)

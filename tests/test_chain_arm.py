@@ -9,6 +9,7 @@ import torch
 
 from ikdp.arm import arm_from_config
 from ikdp.chain_arm import ChainArm
+from ikdp.refine import clamp_task_error, damped_least_squares, dls_step
 from ikdp.robots import ROBOTS, example_robot_data_file, load_robot, robot_names, spatial_arm
 from ikdp.rotations import matrix_to_quaternion, quaternion_to_matrix, rpy_to_matrix
 from ikdp.urdf import parse_chain
@@ -307,3 +308,40 @@ def test_chain_arm_offers_everything_planar_arm_does(panda):
     shared = {name for name in dir(PlanarArm) if not name.startswith("_")} - planar_only
     assert shared <= {name for name in dir(panda) if not name.startswith("_")}
     assert panda.kind == "chain" and panda.target_dim == 7 and panda.position_dim == 3
+
+
+def test_blocked_by_limits_marks_only_limited_joints_pushed_outward(panda):
+    limits = panda.joint_limits.double()
+    joints = limits.mean(1).repeat(3, 1)
+    joints[0, 3], joints[1, 5] = limits[3, 1], limits[5, 0]  # the elbow on its upper limit, the wrist on its lower
+    step = torch.full_like(joints, 0.1)
+    step[1] = -0.1
+    blocked = panda.blocked_by_limits(joints, step)
+    assert blocked.nonzero().tolist() == [[0, 3], [1, 5]]  # pushed out; the same joints pushed back in are free
+    assert not panda.blocked_by_limits(joints, -step).any()
+    wrapping = spatial_arm(3)  # continuous joints wrap: nothing holds them
+    assert not wrapping.blocked_by_limits(torch.full((1, 6), math.pi, dtype=torch.float64), torch.ones(1, 6)).any()
+
+
+def test_refinement_moves_the_free_joints_when_one_is_held_by_its_limit(panda):
+    """Targets reached with two joints on their limits, starts nearby: the clamped step alone stalls more poses."""
+    generator = torch.Generator().manual_seed(6)
+    limits = panda.joint_limits.double()
+    solutions = panda.random_poses(64, generator=generator).double()
+    solutions[:, 3], solutions[:, 5] = limits[3, 1], limits[5, 0]
+    targets = panda.end_effector(solutions)
+    starts = panda.normalize_joints(solutions + 0.1 * torch.randn(solutions.shape, generator=generator).double())
+
+    def clamped_only(joints, steps):  # the refinement before the active set: step, then clamp
+        for _ in range(steps):
+            error = clamp_task_error(panda.task_error(joints, targets), 3, 0.2 * panda.span, math.pi / 4)
+            joints = panda.normalize_joints(joints + dls_step(panda.jacobian(joints), error, 1e-6))
+        return joints
+
+    one_step = damped_least_squares(panda, starts, targets, steps=1)
+    miss = lambda joints: panda.task_error(joints, targets).norm(dim=-1)  # noqa: E731
+    assert (miss(one_step) <= miss(clamped_only(starts, 1)) + 1e-12).all()  # per pose, never worse than clamping
+    refined, clamped = damped_least_squares(panda, starts, targets, steps=8), clamped_only(starts, 8)
+    reached = lambda joints: (panda.position_error(joints, targets) < 1e-6).double().mean()  # noqa: E731
+    assert reached(refined) > reached(clamped) + 0.15  # 0.52 against 0.20 when written
+    assert panda.limit_violations(refined).sum() == 0

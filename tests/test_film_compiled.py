@@ -70,6 +70,38 @@ def test_compiled_step_matches_the_torch_step(
         )
 
 
+@pytest.mark.parametrize(("targets_count", "samples"), [(5, 16), (11, 7), (1, 40)])
+def test_per_target_conditions_read_as_if_each_row_had_its_copy(kernel, targets_count, samples):
+    """K rows per target read their target's condition in place; groups straddle the kernel's 32-row chunks."""
+    model = random_model((1.0, 1.0, 1.0, 1.0), 128, 3)
+    generator = torch.Generator().manual_seed(2)
+    rows = targets_count * samples
+    with torch.inference_mode():
+        x = torch.randn((rows, 8), generator=generator)
+        targets = torch.randn((targets_count, 2), generator=generator)
+        t = torch.randint(model.schedule.num_timesteps, (targets_count,), generator=generator)
+        film = model.denoiser.condition(t, targets)
+        compiled = model.denoiser.workspace(rows, x)
+        per_target = model.denoiser.denoise(x, targets, film, workspace=compiled).clone()
+        copied = model.denoiser.denoise(
+            x, targets.repeat_interleave(samples, dim=0), film.repeat_interleave(samples, dim=0), workspace=compiled
+        )
+        torch.testing.assert_close(per_target, copied, atol=0, rtol=0)
+        with pytest.raises(ValueError, match="cannot share"):
+            model.denoiser.denoise(x, x.new_zeros((3, 2)), film[:1].expand(2, *film.shape[1:]), workspace=compiled)
+
+
+def test_a_batch_solve_gives_the_torch_paths_samples(kernel, monkeypatch):
+    """The sampling loop hands the kernel per-target conditions; torch's path gets per-row copies: same poses."""
+    solver = ikdp.load("ikdp_n4")
+    targets = torch.tensor([[1.0, 1.5], [-2.0, 0.3], [0.5, -2.5]])
+    options = {"num_samples": 20, "sampler": "ddim", "steps": 10}
+    compiled = solver.solve(targets, generator=torch.Generator().manual_seed(0), **options)
+    monkeypatch.setattr("ikdp.denoisers.film.compiled_workspace", lambda *args: None)
+    plain = solver.solve(targets, generator=torch.Generator().manual_seed(0), **options)
+    torch.testing.assert_close(compiled.angles, plain.angles, atol=1e-3, rtol=0)
+
+
 def test_a_shipped_solve_is_the_same_through_either_path(kernel, monkeypatch):
     solver = ikdp.load("ikdp_n4")
     targets = torch.tensor([[1.0, 1.5], [-2.0, 0.3]])

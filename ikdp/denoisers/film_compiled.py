@@ -30,6 +30,7 @@ SOURCE = Path(__file__).with_name("film_kernel.c")
 # -ffast-math lets the compiler vectorise expf (SiLU, through glibc's vector maths) and reassociate the
 # sums: results differ from torch's at float rounding, as torch's own kernels differ between machines
 FLAGS = ("-O3", "-march=native", "-ffast-math", "-shared", "-fPIC", "-std=c99")
+KERNEL_CHUNK_ROWS = 32  # film_kernel.c's CHUNK
 
 _lock = threading.Lock()
 _library: ctypes.CDLL | None = None
@@ -102,7 +103,7 @@ def load_kernel() -> ctypes.CDLL | None:
             return None
         function = library.ikdp_film_denoise
         pointer, long = ctypes.c_void_p, ctypes.c_long
-        function.argtypes = [ctypes.POINTER(FilmStep), pointer, pointer, long, pointer, long]
+        function.argtypes = [ctypes.POINTER(FilmStep), pointer, pointer, long, pointer, long, long]
         function.restype = ctypes.c_int
         _library = library
         return library
@@ -136,7 +137,8 @@ class CompiledFiLMWorkspace:
         self.b_blocks = contiguous(torch.stack([block.bias for block in denoiser.blocks]))
         self.w_out, self.b_out = contiguous(denoiser.output.weight.t()), contiguous(denoiser.output.bias)
         num_features = denoiser.input.in_features
-        self.scratch = torch.empty(rows * (num_features + 3 * hidden + 3 * links), dtype=torch.float32)
+        chunk = min(rows, KERNEL_CHUNK_ROWS)  # the kernel takes rows through the layers in chunks of this many
+        self.scratch = torch.empty(chunk * (num_features + 3 * hidden + 3 * links), dtype=torch.float32)
         self.clean = torch.empty((rows, representation.dim), dtype=torch.float32)
         # the arguments that do not change between calls, converted once: a call then passes six
         address = lambda tensor: tensor.data_ptr()  # noqa: E731
@@ -147,8 +149,23 @@ class CompiledFiLMWorkspace:
         )  # fmt: skip
         self.step_pointer = ctypes.byref(self.step)
 
+    # the sampling loop may pass one target and one condition per target, (B, ...), for M = B K rows
+    accepts_per_target_conditions = True
+
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
-        """The plain `FiLMDenoiser.denoise`; returns the `clean` buffer (M, D), overwritten by the next call."""
+        """The plain `FiLMDenoiser.denoise`; returns the `clean` buffer (M, D), overwritten by the next call.
+
+        `target` and `film` hold one row for all M rows, one per row, or one per group of M / B
+        consecutive rows (the K samples of each of B targets): the kernel reads a group's row
+        for each of its rows instead of the caller copying it K times.
+        """
+        rows = x.shape[0]
+        counts = {count for count in (target.shape[0], film.shape[0]) if count > 1}
+        if len(counts) > 1 or (counts and rows % next(iter(counts))):
+            raise ValueError(
+                f"compiled FiLM step: {rows} rows cannot share {target.shape[0]} targets and {film.shape[0]} conditions"
+            )
+        rows_per_condition = rows // counts.pop() if counts else 1
         if not x.is_contiguous():
             x = x.contiguous()
         if target.stride(-1) != 1:
@@ -158,7 +175,10 @@ class CompiledFiLMWorkspace:
         # one target or one condition for every row: stride 0 reads the same row again
         target_stride = target.stride(0) if target.shape[0] > 1 else 0
         film_stride = film.stride(0) if film.shape[0] > 1 else 0
-        self.function(self.step_pointer, x.data_ptr(), target.data_ptr(), target_stride, film.data_ptr(), film_stride)
+        self.function(
+            self.step_pointer, x.data_ptr(), target.data_ptr(), target_stride, film.data_ptr(), film_stride,
+            rows_per_condition,
+        )  # fmt: skip
         return self.clean
 
 

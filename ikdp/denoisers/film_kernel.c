@@ -8,19 +8,22 @@
  *
  * Layouts (all float32, row-major, contiguous unless a stride is given):
  *   x        (M, 2N)      the noisy sample: each link's (cos, sin), not necessarily unit
- *   target   (M, 2)       rows apart by target_stride floats
- *   film     (M, B+1, 2, H) rows apart by film_stride floats (0: one condition for all rows);
+ *   target   (M / G, 2)   rows apart by target_stride floats (0: one target for all rows)
+ *   film     (M / G, B+1, 2, H) rows apart by film_stride floats (0: one condition for all rows);
  *            [b][0] is block b's scale, [b][1] its shift, [B][0][:F] the feature scales
  *   w_in     (F, H)       the input layer's weight transposed, F = 2N + 2 + N
  *   w_blocks (B, H, H)    each block's weight transposed
  *   w_out    (H, N)       the output layer's weight transposed
- *   scratch  M * (F + 3H + N + 2N) floats
+ *            G = rows_per_condition consecutive rows of x share a target and a condition (the K
+ *            samples of one target), so they are never copied K times
+ *   scratch  min(M, CHUNK) * (F + 3H + N + 2N) floats
  *   clean    (M, 2N)      the estimate of x_0: each unit direction turned by the network's angle
  */
 #include <math.h>
 #include <stddef.h>
 
-#define TILE 4 /* rows that share each weight loaded */
+#define TILE 4   /* rows that share each weight loaded */
+#define CHUNK 32 /* rows taken through all layers at once: their activations fit in the L1/L2 cache */
 
 /* v * sigmoid(v); the exponent is clamped so it stays finite (the build assumes finite math to vectorise expf) */
 static inline float silu(float v) { return v / (1.0f + expf(fminf(-v, 80.0f))); }
@@ -124,31 +127,36 @@ typedef struct {
     float *scratch, *clean;
 } FilmStep;
 
-int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target, long target_stride,
-                      const float *film, long film_stride) {
-    const int rows = step->rows, links = step->links, hidden = step->hidden, blocks = step->blocks;
+/* rows first .. first + rows - 1 of the call, through every layer; scratch holds this chunk only */
+static void denoise_chunk(const FilmStep *step, int first, int rows, const float *x, const float *target,
+                          long target_stride, const float *film, long film_stride, long rows_per_condition) {
+    const int links = step->links, hidden = step->hidden, blocks = step->blocks;
     const float *lengths = step->lengths, *w_in = step->w_in, *b_in = step->b_in, *w_blocks = step->w_blocks;
     const float *b_blocks = step->b_blocks, *w_out = step->w_out, *b_out = step->b_out;
     const float damping_squared = step->damping_squared;
-    float *scratch = step->scratch, *clean = step->clean;
+    float *scratch = step->scratch;
     const int dim = 2 * links, num_features = dim + 2 + links;
-    float *features = scratch;                                  /* (M, F) */
-    float *h = features + (size_t)rows * num_features;          /* (M, H) */
-    float *modulated = h + (size_t)rows * hidden;               /* (M, H) */
-    float *block_output = modulated + (size_t)rows * hidden;    /* (M, H) */
-    float *turn = block_output + (size_t)rows * hidden;         /* (M, N) */
-    float *unit = turn + (size_t)rows * links;                  /* (M, 2N) */
+    float *clean = step->clean + (size_t)first * dim;
+    x += (size_t)first * dim;
+    float *features = scratch;                                  /* (rows, F) */
+    float *h = features + (size_t)rows * num_features;          /* (rows, H) */
+    float *modulated = h + (size_t)rows * hidden;               /* (rows, H) */
+    float *block_output = modulated + (size_t)rows * hidden;    /* (rows, H) */
+    float *turn = block_output + (size_t)rows * hidden;         /* (rows, N) */
+    float *unit = turn + (size_t)rows * links;                  /* (rows, 2N) */
     const long scale_offset = (long)blocks * 2 * hidden;
 
+    const float *row_film[CHUNK]; /* each row's condition: rows_per_condition consecutive rows share one */
     for (int r = 0; r < rows; r++) {
-        const float *row_film = film + (size_t)r * film_stride;
-        row_features(links, x + (size_t)r * dim, target + (size_t)r * target_stride, lengths, damping_squared,
-                     row_film + scale_offset, unit + (size_t)r * dim, features + (size_t)r * num_features);
+        const size_t condition = (size_t)(first + r) / (size_t)rows_per_condition;
+        row_film[r] = film + condition * film_stride;
+        row_features(links, x + (size_t)r * dim, target + condition * target_stride, lengths, damping_squared,
+                     row_film[r] + scale_offset, unit + (size_t)r * dim, features + (size_t)r * num_features);
     }
     affine(rows, features, num_features, w_in, b_in, hidden, h);
     for (int b = 0; b < blocks; b++) {
         for (int r = 0; r < rows; r++) {
-            const float *scale = film + (size_t)r * film_stride + (size_t)b * 2 * hidden;
+            const float *scale = row_film[r] + (size_t)b * 2 * hidden;
             const float *shift = scale + hidden;
             float *hr = h + (size_t)r * hidden, *mr = modulated + (size_t)r * hidden;
             for (int j = 0; j < hidden; j++) mr[j] = silu(shift[j] + hr[j] * scale[j]);
@@ -168,6 +176,16 @@ int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target,
             clean[(size_t)r * dim + 2 * n] = ux * c - uy * s;
             clean[(size_t)r * dim + 2 * n + 1] = ux * s + uy * c;
         }
+    }
+}
+
+int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target, long target_stride,
+                      const float *film, long film_stride, long rows_per_condition) {
+    const int rows = step->rows;
+    /* a chunk of rows goes through every layer before the next starts: its activations stay in cache */
+    for (int first = 0; first < rows; first += CHUNK) {
+        const int count = rows - first < CHUNK ? rows - first : CHUNK;
+        denoise_chunk(step, first, count, x, target, target_stride, film, film_stride, rows_per_condition);
     }
     return 0;
 }
