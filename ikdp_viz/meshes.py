@@ -1,7 +1,6 @@
-"""The arm's geometry, built with trimesh and sized to the arm: links, joints, tip, base, the target's cross.
+"""The planar scene's geometry, built with trimesh and sized to the arm: the base and the target's cross.
 
-Links are a unit-length cylinder along +x, centred on the origin, that the viewer
-scales along x to each bone; with a sphere on every joint they read as capsules.
+The K arms themselves are lines and dots (scene.arm_placement); their dots take these sizes.
 """
 
 from __future__ import annotations
@@ -16,27 +15,15 @@ import trimesh
 class ArmSizes:
     """Radii of the drawn arm, proportional to its mean bone length so every arm looks alike."""
 
-    link: float  # link cylinder radius
-    joint: float  # joint sphere radius
-    tip: float  # tip marker radius
+    joint: float  # joint dot radius
+    tip: float  # tip dot radius
     base: float  # base disc radius
     cross: float  # half-size of the target's cross
 
     @classmethod
     def for_lengths(cls, lengths) -> ArmSizes:
         mean = float(np.mean(lengths))
-        return cls(link=0.045 * mean, joint=0.075 * mean, tip=0.085 * mean, base=0.16 * mean, cross=0.3 * mean)
-
-
-def link_mesh(radius: float) -> trimesh.Trimesh:
-    """Cylinder of unit length along +x, centred on the origin."""
-    cylinder = trimesh.creation.cylinder(radius=radius, height=1.0, sections=16)  # along z
-    cylinder.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
-    return cylinder
-
-
-def sphere_mesh(radius: float, subdivisions: int = 2) -> trimesh.Trimesh:
-    return trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+        return cls(joint=0.075 * mean, tip=0.085 * mean, base=0.16 * mean, cross=0.3 * mean)
 
 
 def base_mesh(radius: float) -> trimesh.Trimesh:

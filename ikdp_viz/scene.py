@@ -28,11 +28,25 @@ REFINED = (25, 160, 70)  # the damped-least-squares polish of the final pose
 FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
 ERROR_FLOOR = 1e-6  # tip errors below this are charted at it (log10 of 0 is -inf)
 # Heights above the plane, in joint radii, that set what a top-down view draws on top of what: the
-# refined poses over the other arms, the highlighted arm over them, the target's cross over everything.
+# K arms over the trail, the refined poses over the arms, the highlighted arm over them, the target's
+# cross over everything.
+ARM_LIFT = 0.25
 REFINED_LIFT = 1.0
 HIGHLIGHT_LIFT = 2.0
 TARGET_LIFT = 4.0
 LAYER_HEIGHT = 1e-4  # z step between consecutive states, so later (darker) lines draw over earlier ones
+
+
+def line_colors(colors: np.ndarray) -> np.ndarray:
+    """sRGB colours (..., 3) uint8 -> what viser's line segments must be sent to show them.
+
+    The page takes a line's vertex colours as linear and encodes its output as sRGB, so a
+    colour sent as is shows lighter (DARK, 28, drew as 92), while meshes and dots show theirs
+    as sent: the arms' links would not match their joints.
+    """
+    unit = np.asarray(colors, dtype=np.float64) / 255.0
+    linear = np.where(unit <= 0.04045, unit / 12.92, ((unit + 0.055) / 1.055) ** 2.4)
+    return np.rint(255.0 * linear).astype(np.uint8)
 
 
 def fade_colors(count: int, faint=FAINT, dark=DARK, *, gamma: float = FADE_GAMMA) -> np.ndarray:
@@ -186,44 +200,33 @@ def trail_until(
     return points[chosen].reshape(-1, 2, 3), colors[chosen].reshape(-1, 2, 3)
 
 
-def yaw_quaternions(angles: np.ndarray) -> np.ndarray:
-    """Rotations about +z by `angles` (...,) as wxyz quaternions (..., 4)."""
-    half = np.asarray(angles, dtype=np.float64) / 2
-    zeros = np.zeros_like(half)
-    return np.stack((np.cos(half), zeros, zeros, np.sin(half)), axis=-1)
-
-
 @dataclass(frozen=True)
 class ArmPlacement:
-    """Instance transforms of K arms: links are a unit-length x-aligned mesh, scaled along x to each bone."""
+    """K arms drawn as the paper's figure draws them: each link a line segment, each joint and tip a dot.
 
-    link_positions: np.ndarray  # (K*N, 3) bone midpoints
-    link_wxyzs: np.ndarray  # (K*N, 4) rotation of +x onto each bone
-    link_scales: np.ndarray  # (K*N, 3) (bone length, 1, 1)
+    Lines and dots, not lit 3-D meshes: software WebGL spends on each triangle, and K = 16
+    capsule arms (11,800 triangles) cost the page more than everything else in the scene
+    (docs/VIZ.md, "Where the page's time goes").
+    """
+
+    link_segments: np.ndarray  # (K*N, 2, 3) each bone's start and end
     joint_positions: np.ndarray  # (K*(N+1), 3) base, joints and tip of each arm
     tip_positions: np.ndarray  # (K, 3)
 
 
-def arm_placement(joints: np.ndarray, lengths, *, raised: int | None = None, lift: float = 0.0) -> ArmPlacement:
-    """Transforms drawing K arms of joints (K, N+1, 2); the `raised` sample lifted by `lift` to draw on top."""
+def arm_placement(
+    joints: np.ndarray, *, height: float = 0.0, raised: int | None = None, lift: float = 0.0
+) -> ArmPlacement:
+    """K arms of joints (K, N+1, 2) at `height` above the plane; the `raised` sample at `lift`, to draw on top."""
     joints = np.asarray(joints, dtype=np.float64)
     num_samples, num_points, _ = joints.shape
-    heights = np.zeros((num_samples, 1))
+    heights = np.full((num_samples, 1, 1), height)
     if raised is not None:
         heights[raised] = lift
-    starts, ends = joints[:, :-1], joints[:, 1:]  # (K, N, 2)
-    delta = ends - starts
-    headings = np.arctan2(delta[..., 1], delta[..., 0])  # (K, N)
-    middles = np.concatenate(
-        ((starts + ends) / 2, np.broadcast_to(heights[:, None], (num_samples, num_points - 1, 1))), -1
-    )
-    scales = np.ones((num_samples, num_points - 1, 3))
-    scales[..., 0] = np.asarray(lengths, dtype=np.float64)
-    points = np.concatenate((joints, np.broadcast_to(heights[:, None], (num_samples, num_points, 1))), -1)
+    points = np.concatenate((joints, np.broadcast_to(heights, (num_samples, num_points, 1))), -1)
+    segments = np.stack((points[:, :-1], points[:, 1:]), axis=2)  # (K, N, 2, 3)
     return ArmPlacement(
-        link_positions=middles.reshape(-1, 3),
-        link_wxyzs=yaw_quaternions(headings).reshape(-1, 4),
-        link_scales=scales.reshape(-1, 3),
+        link_segments=segments.reshape(-1, 2, 3),
         joint_positions=points.reshape(-1, 3),
         tip_positions=points[:, -1],
     )

@@ -28,6 +28,7 @@ from ikdp_viz import meshes, readouts
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.panel import Panel, highlight_index, plot_scales
 from ikdp_viz.scene import (
+    ARM_LIFT,
     HIGHLIGHT_LIFT,
     REFINED,
     REFINED_LIFT,
@@ -39,6 +40,7 @@ from ikdp_viz.scene import (
     error_curves,
     fade_colors,
     grid_segments,
+    line_colors,
     nearest_state,
     polyline_segments,
     sample_colors,
@@ -48,13 +50,14 @@ from ikdp_viz.scene import (
 from ikdp_viz.solving import Solved
 
 TARGET_RED = (220, 25, 25)
-GRID_CELL = (236, 236, 236)  # grid lines every quarter bone length
+GRID_CELL = (236, 236, 236)  # grid lines every half bone length
 GRID_SECTION = (212, 212, 212)  # grid lines every mean bone length
 ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
+ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' dots are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
-PLAYING_TRAIL_STATES = 12  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
 
 
 def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -416,8 +419,10 @@ class SceneWriter:
         """The planar frame: the trail up to `state`, the arms (and x̂0) at `state`, the joint space view."""
         view = solved.view
         num_samples, num_links = view.num_samples, view.num_links
-        lift = HIGHLIGHT_LIFT * self.sizes.joint
-        placement = arm_placement(view.joints[state], view.lengths, raised=highlight, lift=lift)
+        joint = self.sizes.joint
+        placement = arm_placement(
+            view.joints[state], height=ARM_LIFT * joint, raised=highlight, lift=HIGHLIGHT_LIFT * joint
+        )
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
@@ -435,14 +440,13 @@ class SceneWriter:
             self.estimate_lines.visible = True
         else:
             self.estimate_lines.visible = False
-        self.links.batched_positions = placement.link_positions
-        self.links.batched_wxyzs = placement.link_wxyzs
-        self.links.batched_scales = placement.link_scales
-        self.links.batched_colors = np.repeat(colors, num_links, axis=0)
-        self.joints.batched_positions = placement.joint_positions
-        self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
-        self.tips.batched_positions = placement.tip_positions
-        self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
+        self.links.points = placement.link_segments
+        link_colors = line_colors(np.repeat(colors, num_links, axis=0))[:, None]  # as dark as the joints' dots
+        self.links.colors = np.broadcast_to(link_colors, (num_samples * num_links, 2, 3))
+        self.joints.points = placement.joint_positions
+        self.joints.colors = np.repeat(colors, num_links + 1, axis=0)
+        self.tips.points = placement.tip_positions
+        self.tips.colors = np.broadcast_to(tip_color, (num_samples, 3))
         for node in (self.links, self.joints, self.tips):
             node.visible = True
         final_shown = state == view.num_states - 1 and view.refined
@@ -492,7 +496,9 @@ class SceneWriter:
         inner, outer = self.solver.reach
         unit = float(np.mean(lengths))
         extent = 2 * float(np.ceil((outer + unit) / unit)) * unit
-        grid, sections = grid_segments(extent / 2, unit / 4, unit, z=-0.02 * unit)
+        # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
+        # 82 lines cost the page as much as the 16 arms (docs/VIZ.md)
+        grid, sections = grid_segments(extent / 2, unit / 2, unit, z=-0.02 * unit)
         grid_colors = np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8)
         grid_colors = np.broadcast_to(grid_colors, grid.shape).copy()
         nodes = [scene.add_line_segments("/grid", grid, colors=grid_colors, thickness=1.0, thickness_units="screen")]
@@ -501,7 +507,7 @@ class SceneWriter:
                 nodes.append(
                     scene.add_line_segments(
                         f"/workspace/{name}",
-                        circle_segments(radius, z=-0.01 * unit),
+                        circle_segments(radius, 96, z=-0.01 * unit),  # 96 look round; each costs the page
                         colors=(150, 150, 150),
                         thickness=LINE_PIXELS,
                         thickness_units="screen",
@@ -540,40 +546,32 @@ class SceneWriter:
         self._remove_arm_nodes()
         scene = self.server.scene
         num_samples, num_links = shape
-        links, joints, tips = (instances * num_samples for instances in (num_links, num_links + 1, 1))
-        identity = lambda count: np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))  # noqa: E731
-        origin = lambda count: np.zeros((count, 3))  # noqa: E731
-        options = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
-        link, joint, tip = (
-            meshes.link_mesh(self.sizes.link),
-            meshes.sphere_mesh(self.sizes.joint, 1),  # 80 faces: software WebGL pays for every one
-            meshes.sphere_mesh(self.sizes.tip, 1),
-        )
+        links, joints = num_samples * num_links, num_samples * (num_links + 1)
         lines = dict(thickness_units="screen", visible=False)
+        dots = dict(point_shape="circle", point_shading="flat", precision="float32", visible=False)
         self.trail = scene.add_line_segments(
             "/arm/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS, **lines
         )
         self.estimate_lines = scene.add_line_segments(
             "/arm/estimate", np.zeros((1, 2, 3)), colors=ESTIMATE, thickness=2 * LINE_PIXELS, **lines
         )
-        self.links = scene.add_batched_meshes_simple(
-            "/arm/links", link.vertices, link.faces, identity(links), origin(links),
-            batched_scales=np.ones((links, 3)), batched_colors=np.zeros((links, 3), np.uint8), **options,
-        )  # fmt: skip
-        self.joints = scene.add_batched_meshes_simple(
-            "/arm/joints", joint.vertices, joint.faces, identity(joints), origin(joints),
-            batched_colors=np.zeros((joints, 3), np.uint8), **options,
-        )  # fmt: skip
-        self.tips = scene.add_batched_meshes_simple(
-            "/arm/tips", tip.vertices, tip.faces, identity(tips), origin(tips),
-            batched_colors=np.zeros((tips, 3), np.uint8), **options,
-        )  # fmt: skip
         self.refined_lines = scene.add_line_segments(
             "/arm/refined", np.zeros((1, 2, 3)), colors=REFINED, thickness=3 * LINE_PIXELS, **lines
         )
-        self.refined_tips = scene.add_batched_meshes_simple(
-            "/arm/refined_tips", tip.vertices, tip.faces, identity(num_samples), origin(num_samples),
-            batched_colors=np.broadcast_to(np.array(REFINED, np.uint8), (num_samples, 3)), **options,
+        self.refined_tips = scene.add_point_cloud(
+            "/arm/refined_tips", np.zeros((num_samples, 3)), colors=REFINED, point_size=self.sizes.tip, **dots
+        )
+        self.links = scene.add_line_segments(
+            "/arm/links", np.zeros((links, 2, 3)), colors=np.zeros((links, 2, 3), np.uint8), thickness=ARM_PIXELS,
+            **lines,
+        )  # fmt: skip
+        self.joints = scene.add_point_cloud(
+            "/arm/joints", np.zeros((joints, 3)), colors=np.zeros((joints, 3), np.uint8),
+            point_size=self.sizes.joint, **dots,
+        )  # fmt: skip
+        self.tips = scene.add_point_cloud(
+            "/arm/tips", np.zeros((num_samples, 3)), colors=np.zeros((num_samples, 3), np.uint8),
+            point_size=self.sizes.tip, **dots,
         )  # fmt: skip
         self.nodes_shape = shape
 
@@ -585,7 +583,7 @@ class SceneWriter:
             np.array(REFINED, np.uint8), (view.num_samples * view.num_links, 2, 3)
         )
         tips = np.concatenate((view.final_joints[:, -1], np.full((view.num_samples, 1), lift)), axis=-1)
-        self.refined_tips.batched_positions = tips
+        self.refined_tips.points = tips
 
     def _remove_arm_nodes(self) -> None:
         for name in (

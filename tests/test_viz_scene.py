@@ -25,6 +25,7 @@ from ikdp_viz.scene import (
     error_curves,
     fade_colors,
     grid_segments,
+    line_colors,
     nearest_state,
     polyline_segments,
     sample_colors,
@@ -32,19 +33,11 @@ from ikdp_viz.scene import (
     trail_colors,
     trail_points,
     trail_until,
-    yaw_quaternions,
 )
 
 
 def luminance(colors: np.ndarray) -> np.ndarray:
     return colors.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
-
-
-def rotate(wxyz: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """Rotate `vector` (3,) by unit quaternions (..., 4)."""
-    w, xyz = wxyz[..., :1], wxyz[..., 1:]
-    t = 2 * np.cross(xyz, vector)
-    return vector + w * t + np.cross(xyz, t)
 
 
 def test_fade_colors_run_from_faint_to_dark_monotonically():
@@ -169,31 +162,21 @@ def test_sample_colors_give_the_highlighted_sample_the_accent_ramp():
     assert (sample_colors(5, 3, highlight=None) == fade_colors(5)[:, None]).all()
 
 
-def test_yaw_quaternions_turn_x_onto_the_heading():
-    angles = np.array([0.0, 0.3, math.pi / 2, -2.0])
-    wxyz = yaw_quaternions(angles)
-    assert np.allclose(np.linalg.norm(wxyz, axis=-1), 1.0)
-    turned = rotate(wxyz, np.array([1.0, 0.0, 0.0]))
-    assert np.allclose(turned, np.stack((np.cos(angles), np.sin(angles), np.zeros(4)), -1))
-
-
-def test_arm_placement_puts_each_scaled_link_between_its_joints():
+def test_arm_placement_draws_each_link_between_its_joints_and_lifts_the_highlight():
     rng = np.random.default_rng(0)
     lengths = np.array([1.0, 0.5, 1.5])
     headings = torch.tensor(rng.uniform(-math.pi, math.pi, (4, 3)))
     joints = ikdp.forward_kinematics(headings, torch.tensor(lengths)).numpy()  # (K=4, N+1=4, 2)
-    placement = arm_placement(joints, lengths, raised=2, lift=0.1)
-    assert placement.link_positions.shape == (12, 3) and placement.link_wxyzs.shape == (12, 4)
+    placement = arm_placement(joints, raised=2, lift=0.1)
+    assert placement.link_segments.shape == (12, 2, 3)
     assert placement.joint_positions.shape == (16, 3) and placement.tip_positions.shape == (4, 3)
-    # the unit link mesh spans x in [-1/2, 1/2]: scaled, rotated and moved, its ends land on the joints
-    half_axis = rotate(placement.link_wxyzs, np.array([0.5, 0.0, 0.0])) * placement.link_scales[:, :1]
-    starts = (placement.link_positions - half_axis).reshape(4, 3, 3)
-    ends = (placement.link_positions + half_axis).reshape(4, 3, 3)
-    assert np.allclose(starts[..., :2], joints[:, :-1], atol=1e-12)
-    assert np.allclose(ends[..., :2], joints[:, 1:], atol=1e-12)
-    assert np.allclose(placement.link_scales[:, 0], np.tile(lengths, 4))
+    segments = placement.link_segments.reshape(4, 3, 2, 3)
+    assert np.allclose(segments[:, :, 0, :2], joints[:, :-1], atol=1e-12)
+    assert np.allclose(segments[:, :, 1, :2], joints[:, 1:], atol=1e-12)
+    assert np.allclose(np.linalg.norm(segments[..., 1, :] - segments[..., 0, :], axis=-1), lengths)  # bone lengths
     heights = placement.joint_positions[:, 2].reshape(4, 4)
     assert np.allclose(heights[2], 0.1) and np.allclose(heights[[0, 1, 3]], 0.0)  # the highlighted arm on top
+    assert np.allclose(segments[2, ..., 2], 0.1) and np.allclose(segments[[0, 1, 3], ..., 2], 0.0)
     assert np.allclose(placement.tip_positions[:, :2], joints[:, -1])
 
 
@@ -225,10 +208,8 @@ def test_error_curves_run_in_ascending_t_with_one_marker_at_the_current_state():
 
 def test_meshes_are_sized_to_the_arm_and_closed():
     sizes = meshes.ArmSizes.for_lengths((2.0, 2.0))
-    assert sizes.joint > sizes.link > 0 and sizes.cross > sizes.joint
-    link = meshes.link_mesh(sizes.link)
-    assert np.allclose(link.bounds[:, 0], [-0.5, 0.5])  # unit length along x, centred
-    assert link.is_watertight and meshes.sphere_mesh(sizes.joint).is_watertight
+    assert sizes.tip > sizes.joint > 0 and sizes.cross > sizes.joint
+    assert meshes.base_mesh(sizes.base).is_watertight and meshes.base_mesh(sizes.base).bounds[1, 2] <= 0
     cross = meshes.cross_mesh(sizes.cross)
     assert cross.bounds[0, 2] > 0  # drawn above the arm's plane
     assert np.isclose(np.abs(cross.vertices[:, :2]).max(), sizes.cross * math.sqrt(0.5) + 0.11 * sizes.cross, rtol=0.2)
@@ -249,3 +230,11 @@ def test_importing_the_viewer_does_nothing_and_scene_code_never_imports_viser():
         "assert threading.active_count() == before, threading.enumerate()\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+def test_line_colors_send_the_linear_value_of_the_colour_meant():
+    sent = line_colors(np.array([[0, 0, 0], [28, 28, 28], [255, 255, 255], [20, 90, 210]], np.uint8))
+    assert sent[0].tolist() == [0, 0, 0] and sent[2].tolist() == [255, 255, 255]
+    assert sent[1].tolist() == [3, 3, 3]  # the page's sRGB encoding of 3 / 255 shows 28 again
+    encoded = 255 * np.where(sent / 255 <= 0.0031308, 12.92 * sent / 255, 1.055 * (sent / 255) ** (1 / 2.4) - 0.055)
+    assert np.abs(encoded[3] - [20, 90, 210]).max() < 6  # uint8 steps in linear space are coarse near black
