@@ -329,6 +329,7 @@ class SceneWriter:
         """Pause a running animation, or play from the current step (from t = T when at the end)."""
         if self.animation is not None:
             self.animation = None
+            self._draw_state(self.state)  # paused: now a still frame, drawn in full (the whole trail, the ghosts)
         elif self.solved is not None:
             last = self.solved.view.num_states - 1
             if self.state >= last:
@@ -458,7 +459,8 @@ class SceneWriter:
         """How many states the trail may show at `state`: few while an animation plays, all (None) at its end.
 
         Software WebGL draws every segment in every frame: the full trail at K = 16 (5,184
-        segments) halves the page's frame rate while the animation runs (docs/VIZ.md).
+        segments) halves the page's frame rate while the animation runs (docs/VIZ.md). A
+        pause, the last state and the slider draw it all.
         """
         animation = self.animation
         return PLAYING_TRAIL_STATES if animation is not None and state < animation.last else None

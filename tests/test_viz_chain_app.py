@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import re
+import time
 
 import numpy as np
 import pytest
@@ -131,3 +132,19 @@ def test_the_joint_space_controls_are_hidden_for_a_robot_and_shown_for_a_planar_
     assert app.panel.joint_space.folder.visible is False  # the view draws planar arms only
     with running_app(ikdp.load(tiny_checkpoint), solve_now=False, animation_seconds=0.0) as planar:
         assert planar.panel.joint_space.folder.visible is True
+
+
+def test_a_pause_draws_the_state_in_full_again(app):
+    """While the animation plays the trail is light (every s-th state); paused, the frame is a still one."""
+    writer, last = app.writer, app.solved.view.num_states - 1
+    app.panel.show_trail.value = True
+    app.panel.duration.value = 1.0 * last  # a state a second: caught on the way below
+    app.show_state(0)
+    app.toggle_play()
+    deadline = time.monotonic() + 20
+    while app.state < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert app.playing and 0 < app.state < last
+    app.toggle_play()  # pause
+    assert not app.playing and writer.skeletons.visible and all(node.visible for node in writer.ghosts)
+    assert len(writer.trail.points) == (app.state + 1) * K  # the whole trail up to the state
