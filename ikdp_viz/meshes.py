@@ -1,6 +1,6 @@
-"""The planar scene's geometry, built with trimesh and sized to the arm: the base and the target's cross.
+"""The planar scene's geometry, built with trimesh and sized to the arm: joint dots, the base, the target's cross.
 
-The K arms themselves are lines and dots (scene.arm_placement); their dots take these sizes.
+The K arms' links are lines (scene.arm_placement); their joints and tips are these small spheres.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import trimesh
 class ArmSizes:
     """Radii of the drawn arm, proportional to its mean bone length so every arm looks alike."""
 
-    joint: float  # joint dot radius
-    tip: float  # tip dot radius
+    joint: float  # joint sphere radius
+    tip: float  # tip sphere radius
     base: float  # base disc radius
     cross: float  # half-size of the target's cross
 
@@ -24,6 +24,11 @@ class ArmSizes:
     def for_lengths(cls, lengths) -> ArmSizes:
         mean = float(np.mean(lengths))
         return cls(joint=0.075 * mean, tip=0.085 * mean, base=0.16 * mean, cross=0.3 * mean)
+
+
+def sphere_mesh(radius: float) -> trimesh.Trimesh:
+    """80 faces: software WebGL pays for every one, K (N + 1) times a frame."""
+    return trimesh.creation.icosphere(subdivisions=1, radius=radius)
 
 
 def base_mesh(radius: float) -> trimesh.Trimesh:

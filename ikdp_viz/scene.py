@@ -202,11 +202,10 @@ def trail_until(
 
 @dataclass(frozen=True)
 class ArmPlacement:
-    """K arms drawn as the paper's figure draws them: each link a line segment, each joint and tip a dot.
+    """K arms drawn as the paper's figure draws them: each link a line segment, a dot on each joint and the tip.
 
-    Lines and dots, not lit 3-D meshes: software WebGL spends on each triangle, and K = 16
-    capsule arms (11,800 triangles) cost the page more than everything else in the scene
-    (docs/VIZ.md, "Where the page's time goes").
+    Lines, not lit cylinders: software WebGL spends on each triangle, and K = 16 capsule arms
+    (11,800 triangles) cost the page more than everything else in the scene (docs/VIZ.md).
     """
 
     link_segments: np.ndarray  # (K*N, 2, 3) each bone's start and end

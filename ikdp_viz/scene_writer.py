@@ -55,7 +55,7 @@ GRID_SECTION = (212, 212, 212)  # grid lines every mean bone length
 ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
-ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' dots are about twice as wide at the default zoom)
+ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
 
@@ -442,12 +442,12 @@ class SceneWriter:
         else:
             self.estimate_lines.visible = False
         self.links.points = placement.link_segments
-        link_colors = line_colors(np.repeat(colors, num_links, axis=0))[:, None]  # as dark as the joints' dots
+        link_colors = line_colors(np.repeat(colors, num_links, axis=0))[:, None]  # as dark as the joints
         self.links.colors = np.broadcast_to(link_colors, (num_samples * num_links, 2, 3))
-        self.joints.points = placement.joint_positions
-        self.joints.colors = np.repeat(colors, num_links + 1, axis=0)
-        self.tips.points = placement.tip_positions
-        self.tips.colors = np.broadcast_to(tip_color, (num_samples, 3))
+        self.joints.batched_positions = placement.joint_positions
+        self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
+        self.tips.batched_positions = placement.tip_positions
+        self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
         for node in (self.links, self.joints, self.tips):
             node.visible = True
         final_shown = state == view.num_states - 1 and view.refined
@@ -550,7 +550,12 @@ class SceneWriter:
         num_samples, num_links = shape
         links, joints = num_samples * num_links, num_samples * (num_links + 1)
         lines = dict(thickness_units="screen", visible=False)
-        dots = dict(point_shape="circle", point_shading="flat", precision="float32", visible=False)
+        # the joints and tips as instanced spheres: viser's point clouds, tried first, cost the page
+        # more per update than 80 small spheres (K = 1 animated at 7 frames/s with them, 14 without)
+        spheres = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
+        identity = lambda count: np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))  # noqa: E731
+        origin = lambda count: np.zeros((count, 3))  # noqa: E731
+        joint, tip = meshes.sphere_mesh(self.sizes.joint), meshes.sphere_mesh(self.sizes.tip)
         self.trail = scene.add_line_segments(
             "/arm/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS, **lines
         )
@@ -560,20 +565,21 @@ class SceneWriter:
         self.refined_lines = scene.add_line_segments(
             "/arm/refined", np.zeros((1, 2, 3)), colors=REFINED, thickness=3 * LINE_PIXELS, **lines
         )
-        self.refined_tips = scene.add_point_cloud(
-            "/arm/refined_tips", np.zeros((num_samples, 3)), colors=REFINED, point_size=self.sizes.tip, **dots
-        )
+        self.refined_tips = scene.add_batched_meshes_simple(
+            "/arm/refined_tips", tip.vertices, tip.faces, identity(num_samples), origin(num_samples),
+            batched_colors=np.broadcast_to(np.array(REFINED, np.uint8), (num_samples, 3)), **spheres,
+        )  # fmt: skip
         self.links = scene.add_line_segments(
             "/arm/links", np.zeros((links, 2, 3)), colors=np.zeros((links, 2, 3), np.uint8), thickness=ARM_PIXELS,
             **lines,
         )  # fmt: skip
-        self.joints = scene.add_point_cloud(
-            "/arm/joints", np.zeros((joints, 3)), colors=np.zeros((joints, 3), np.uint8),
-            point_size=self.sizes.joint, **dots,
+        self.joints = scene.add_batched_meshes_simple(
+            "/arm/joints", joint.vertices, joint.faces, identity(joints), origin(joints),
+            batched_colors=np.zeros((joints, 3), np.uint8), **spheres,
         )  # fmt: skip
-        self.tips = scene.add_point_cloud(
-            "/arm/tips", np.zeros((num_samples, 3)), colors=np.zeros((num_samples, 3), np.uint8),
-            point_size=self.sizes.tip, **dots,
+        self.tips = scene.add_batched_meshes_simple(
+            "/arm/tips", tip.vertices, tip.faces, identity(num_samples), origin(num_samples),
+            batched_colors=np.zeros((num_samples, 3), np.uint8), **spheres,
         )  # fmt: skip
         self.nodes_shape = shape
 
@@ -585,7 +591,7 @@ class SceneWriter:
             np.array(REFINED, np.uint8), (view.num_samples * view.num_links, 2, 3)
         )
         tips = np.concatenate((view.final_joints[:, -1], np.full((view.num_samples, 1), lift)), axis=-1)
-        self.refined_tips.points = tips
+        self.refined_tips.batched_positions = tips
 
     def _remove_arm_nodes(self) -> None:
         for name in (

@@ -47,7 +47,7 @@ def app(solver):
 def drawn_joints(app) -> np.ndarray:
     """Joint positions of the solid arms on screen, (K, N+1, 2)."""
     view = app.solved.view
-    return app.joints.points.reshape(view.num_samples, view.num_links + 1, 3)[..., :2]
+    return app.joints.batched_positions.reshape(view.num_samples, view.num_links + 1, 3)[..., :2]
 
 
 def final_polylines(app) -> np.ndarray:
@@ -71,7 +71,7 @@ def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, so
     assert np.allclose(tip_error, out.raw_tip_error[0].numpy(), atol=1e-4)  # within the solver's own error
     expected = ikdp.forward_kinematics(out.raw_angles[0].double()).numpy()
     assert np.allclose(drawn_joints(app), expected, atol=1e-4)
-    assert app.links.points.shape == (16 * 3, 2, 3) and app.tips.points.shape == (16, 3)
+    assert app.links.points.shape == (16 * 3, 2, 3) and app.tips.batched_positions.shape == (16, 3)
     assert "x = +1.100, y = -0.700" in app.panel.target_text.content and "Clamped" not in app.panel.target_text.content
 
 
@@ -167,11 +167,11 @@ def test_refine_draws_the_polished_pose_beside_the_raw_one(app, solver):
     view = app.solved.view
     assert view.refined and app.refined_lines.visible and app.refined_tips.visible
     assert "the best by refined tip error" in app.panel.readout_text.content  # says what "best" ranks by
-    assert np.allclose(app.refined_tips.points[:, :2], view.final_joints[:, -1], atol=1e-5)
+    assert np.allclose(app.refined_tips.batched_positions[:, :2], view.final_joints[:, -1], atol=1e-5)
     assert np.median(view.final_tip_error) < np.median(view.tip_error[-1])  # the polish helps
     # drawn over the other arms, but under the highlighted arm and the target's cross (a top-down camera)
-    highlighted = app.joints.points.reshape(view.num_samples, -1, 3)[app.highlight_index(), :, 2]
-    refined_height = app.refined_tips.points[:, 2]
+    highlighted = app.joints.batched_positions.reshape(view.num_samples, -1, 3)[app.highlight_index(), :, 2]
+    refined_height = app.refined_tips.batched_positions[:, 2]
     cross_height = app.gizmo.position[2] + app.cross.position[2]
     assert (refined_height > 0).all() and (refined_height < highlighted.min()).all()
     assert (app.refined_lines.points[..., 2] < highlighted.min()).all() and cross_height > highlighted.max()
@@ -330,7 +330,7 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     app.panel.checkpoint.value = "two.pt"
     settle(app)
     assert app.solver.num_links == 2 and app.solved.view.num_links == 2
-    assert app.links.points.shape == (16 * 2, 2, 3) and app.joints.points.shape == (16 * 3, 3)
+    assert app.links.points.shape == (16 * 2, 2, 3) and app.joints.batched_positions.shape == (16 * 3, 3)
     assert app.panel.timestep.max == 12 and app.solved.view.num_states == 13
     assert "**N** = 2 links" in app.panel.model_text.content
     app.panel.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
