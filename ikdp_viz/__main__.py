@@ -159,6 +159,12 @@ def main(argv: list[str] | None = None) -> None:
         if config.host in ("0.0.0.0", "::"):
             details = "listening on all interfaces; " + details
         print(f"ikdp-viz: {details}", flush=True)
+        # viser's own address parameter: half-resolution drawing, about 1.5 times the frames in
+        # software WebGL (docs/VIZ.md, "Lines instead of capsules")
+        print(
+            f"ikdp-viz: a slow page (no GPU)? http://{shown_host}:{port}/?fixedDpr=0.5 draws at half resolution",
+            flush=True,
+        )
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:

@@ -110,6 +110,7 @@ def test_default_model_a_taken_port_and_ctrl_c(tmp_path):
             used = int(match.group(1))
             assert used != port and f"port {port} was taken, using {used}" in second
             assert str(Path("checkpoints") / "ikdp_n4.pt") in second and "N=4" in second
+            assert f"http://127.0.0.1:{used}/?fixedDpr=0.5" in process.stdout.readline()  # the slow-page hint
             with urllib.request.urlopen(f"http://127.0.0.1:{used}", timeout=30) as response:
                 assert response.status == 200 and b"<html" in response.read(2000).lower()
             process.send_signal(signal.SIGINT)
