@@ -329,7 +329,7 @@ class SceneWriter:
         """Pause a running animation, or play from the current step (from t = T when at the end)."""
         if self.animation is not None:
             self.animation = None
-            self._draw_state(self.state)  # paused: now a still frame, drawn in full (the whole trail, the ghosts)
+            self._draw_state(self.state)  # paused: now a still frame, drawn in full (the whole trail)
         elif self.solved is not None:
             last = self.solved.view.num_states - 1
             if self.state >= last:

@@ -140,7 +140,7 @@ class CompiledFiLMWorkspace:
         chunk = min(rows, KERNEL_CHUNK_ROWS)  # the kernel takes rows through the layers in chunks of this many
         self.scratch = torch.empty(chunk * (num_features + 3 * hidden + 3 * links), dtype=torch.float32)
         self.clean = torch.empty((rows, representation.dim), dtype=torch.float32)
-        # the arguments that do not change between calls, converted once: a call then passes six
+        # the arguments that do not change between calls, converted once: a call then passes seven
         address = lambda tensor: tensor.data_ptr()  # noqa: E731
         self.step = FilmStep(
             rows, links, hidden, blocks, address(self.lengths), float(denoiser.damping_squared),
