@@ -30,7 +30,6 @@ SOURCE = Path(__file__).with_name("film_kernel.c")
 # -ffast-math lets the compiler vectorise expf (SiLU, through glibc's vector maths) and reassociate the
 # sums: results differ from torch's at float rounding, as torch's own kernels differ between machines
 FLAGS = ("-O3", "-march=native", "-ffast-math", "-shared", "-fPIC", "-std=c99")
-KERNEL_CHUNK_ROWS = 32  # film_kernel.c's CHUNK
 
 _lock = threading.Lock()
 _library: ctypes.CDLL | None = None
@@ -105,6 +104,7 @@ def load_kernel() -> ctypes.CDLL | None:
         pointer, long = ctypes.c_void_p, ctypes.c_long
         function.argtypes = [ctypes.POINTER(FilmStep), pointer, pointer, long, pointer, long, long]
         function.restype = ctypes.c_int
+        library.ikdp_film_chunk_rows.argtypes, library.ikdp_film_chunk_rows.restype = [], ctypes.c_int
         _library = library
         return library
 
@@ -137,7 +137,7 @@ class CompiledFiLMWorkspace:
         self.b_blocks = contiguous(torch.stack([block.bias for block in denoiser.blocks]))
         self.w_out, self.b_out = contiguous(denoiser.output.weight.t()), contiguous(denoiser.output.bias)
         num_features = denoiser.input.in_features
-        chunk = min(rows, KERNEL_CHUNK_ROWS)  # the kernel takes rows through the layers in chunks of this many
+        chunk = min(rows, library.ikdp_film_chunk_rows())  # the kernel takes rows through the layers in chunks
         self.scratch = torch.empty(chunk * (num_features + 3 * hidden + 3 * links), dtype=torch.float32)
         self.clean = torch.empty((rows, representation.dim), dtype=torch.float32)
         # the arguments that do not change between calls, converted once: a call then passes seven

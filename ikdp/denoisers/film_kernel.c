@@ -179,6 +179,9 @@ static void denoise_chunk(const FilmStep *step, int first, int rows, const float
     }
 }
 
+/* the rows of one chunk: the caller sizes the scratch by it (film_compiled.py asks, never assumes) */
+int ikdp_film_chunk_rows(void) { return CHUNK; }
+
 int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target, long target_stride,
                       const float *film, long film_stride, long rows_per_condition) {
     const int rows = step->rows;
