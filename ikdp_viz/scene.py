@@ -202,7 +202,7 @@ def trail_until(
 
 @dataclass(frozen=True)
 class ArmPlacement:
-    """K arms drawn as the paper's figure draws them: each link a line segment, a dot on each joint and the tip.
+    """K arms drawn as the paper's figure draws them: each link a line segment, a small sphere on each joint and tip.
 
     Lines, not lit cylinders: software WebGL spends on each triangle, and K = 16 capsule arms
     (11,800 triangles) cost the page more than everything else in the scene (docs/VIZ.md).

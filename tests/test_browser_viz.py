@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 from viz_helpers import (
+    BROWSER_TIMEOUT,
     NO_FADE_CSS,
     canvas_box,
     dark_fraction,
@@ -26,7 +27,6 @@ import ikdp
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-TIMEOUT = 60.0  # seconds, for anything the browser has to render
 TARGET = (1.4, 0.9)
 
 
@@ -44,7 +44,7 @@ class Viewer:
         """Page pixels of the midpoints of the final pose's dark links, away from the base and the gizmo."""
         return link_pixels(self.app, self.page, self.app.solved.view.joints[-1])
 
-    def wait_for_picture(self, condition, page=None, timeout: float = TIMEOUT) -> np.ndarray:
+    def wait_for_picture(self, condition, page=None, timeout: float = BROWSER_TIMEOUT) -> np.ndarray:
         deadline = time.monotonic() + timeout
         while True:
             image = self.screenshot(page)
@@ -60,7 +60,7 @@ def open_page(browser, app, console: list[str] | None = None):
         page.on("pageerror", lambda error: console.append(f"pageerror: {error}"))
     page.goto(f"http://127.0.0.1:{app.server.get_port()}")
     page.add_style_tag(content=NO_FADE_CSS)
-    page.get_by_text("Connected", exact=True).wait_for(timeout=TIMEOUT * 1000)
+    page.get_by_text("Connected", exact=True).wait_for(timeout=BROWSER_TIMEOUT * 1000)
     return page
 
 
@@ -127,7 +127,7 @@ def test_moving_the_timestep_slider_in_the_page_changes_the_picture(viewer):
     assert slider.get_attribute("aria-valuemax") == str(app.solver.timesteps)
     slider.focus()
     page.keyboard.press("End")  # t = T: pure noise
-    deadline = time.monotonic() + TIMEOUT
+    deadline = time.monotonic() + BROWSER_TIMEOUT
     while app.state != 0 and time.monotonic() < deadline:
         time.sleep(0.05)
     assert app.state == 0 and app.panel.timestep.value == app.solver.timesteps
@@ -152,7 +152,7 @@ def test_dragging_the_gizmo_moves_the_target_and_the_arm_follows(viewer):
         page.mouse.move(grip[0] + 8 * step, grip[1] + 2 * step)
         time.sleep(0.03)
     page.mouse.up()
-    deadline = time.monotonic() + TIMEOUT
+    deadline = time.monotonic() + BROWSER_TIMEOUT
     while app.target[0] < start_target[0] + 0.2 and time.monotonic() < deadline:
         time.sleep(0.05)
     settle(app)
@@ -176,7 +176,7 @@ def test_two_tabs_see_one_scene_and_closing_one_mid_animation_breaks_nothing(vie
     app.panel.duration.value = 1.5
     try:
         drag_gizmo(app, -1.0, 1.6, phase="end")  # a move in one go: its solve is animated
-        deadline = time.monotonic() + TIMEOUT
+        deadline = time.monotonic() + BROWSER_TIMEOUT
         while not app.playing and time.monotonic() < deadline:
             time.sleep(0.01)
         assert app.playing
@@ -188,7 +188,7 @@ def test_two_tabs_see_one_scene_and_closing_one_mid_animation_breaks_nothing(vie
     pixels = viewer.final_link_pixels()
     after = viewer.wait_for_picture(lambda image: dark_fraction(image, pixels) >= 0.8)
     assert dark_fraction(after, pixels) >= 0.8  # the first tab still follows
-    deadline = time.monotonic() + TIMEOUT
+    deadline = time.monotonic() + BROWSER_TIMEOUT
     while len(app.server.get_clients()) != 1 and time.monotonic() < deadline:
         time.sleep(0.05)
     assert len(app.server.get_clients()) == 1
@@ -209,7 +209,7 @@ def test_opening_a_longer_arm_fits_the_open_tabs_view_to_its_reach(viewer, tiny_
         assert app.load_checkpoint(longer)
         settle(app)
         expected, _ = camera_fit(app.solver.reach[1])
-        deadline = time.monotonic() + TIMEOUT
+        deadline = time.monotonic() + BROWSER_TIMEOUT
         fitted = lambda: all(np.allclose(client.camera.position, expected, atol=1e-3) for client in clients)  # noqa: E731
         while not fitted() and time.monotonic() < deadline:
             time.sleep(0.1)  # the pages report their cameras back

@@ -10,13 +10,12 @@ from __future__ import annotations
 import time
 
 import pytest
-from viz_helpers import NO_FADE_CSS, open_page_collecting_errors, read_png, running_app, settle
+from viz_helpers import BROWSER_TIMEOUT, NO_FADE_CSS, open_page_collecting_errors, read_png, running_app, settle
 
 import ikdp
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-TIMEOUT = 60.0  # seconds, for anything the browser has to render
 SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 BACKGROUND = 250  # viser's canvas is white; a drawn robot is darker than this
 
@@ -28,12 +27,13 @@ def test_a_chain_checkpoint_opens_and_draws_a_solve_without_page_errors(browser,
         app.panel.samples.value = 4  # solves the first target, animated from t = T
         settle(app)
         assert app.solved is not None and app.state == app.solved.view.num_states - 1
-        page.get_by_text("Hand error", exact=False).first.wait_for(timeout=TIMEOUT * 1000)  # readouts reached the page
+        # the readouts reached the page
+        page.get_by_text("Hand error", exact=False).first.wait_for(timeout=BROWSER_TIMEOUT * 1000)
         app.panel.timestep.value = app.solver.timesteps // 2
         app.panel.refine.value = True
         settle(app)
         time.sleep(SETTLE_IN_PAGE)
-        image = read_png(page.screenshot(timeout=TIMEOUT * 1000))
+        image = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         assert not errors, f"{errors[:3]} ({len(errors)} in all)"
         scene = image[:, : image.shape[1] // 2]  # left of the panel: the robots stand there
         assert (scene.max(axis=-1) < BACKGROUND - 60).mean() > 0.002, "nothing dark drawn in the scene"

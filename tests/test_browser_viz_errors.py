@@ -12,14 +12,13 @@ import time
 
 import numpy as np
 import pytest
-from viz_helpers import open_page_collecting_errors, running_app, settle
+from viz_helpers import BROWSER_TIMEOUT, open_page_collecting_errors, running_app, settle
 
 import ikdp
 from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-TIMEOUT = 60.0  # seconds, for anything the browser has to render
 ISSUE_TARGET = (-0.010, 1.200)
 SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw each solve (software WebGL is slow)
 
@@ -48,6 +47,6 @@ def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shippe
             settle(app)
             app.panel.timestep.value = app.solver.timesteps // 2  # scrubbing redraws the chart too
             time.sleep(SETTLE_IN_PAGE)
-            page.screenshot(timeout=TIMEOUT * 1000)  # headless chromium renders (and runs the chart's draw) for it
+            page.screenshot(timeout=BROWSER_TIMEOUT * 1000)  # chromium renders (and runs the chart's draw) for it
             assert not errors, f"{name} {target}: {errors[:3]} ({len(errors)} in all)"
         page.close()

@@ -9,14 +9,13 @@ import time
 
 import numpy as np
 import pytest
-from viz_helpers import canvas_box, open_page_collecting_errors, read_png, running_app, settle
+from viz_helpers import BROWSER_TIMEOUT, canvas_box, open_page_collecting_errors, read_png, running_app, settle
 
 import ikdp
 from ikdp.shipped import list_shipped, shipped_checkpoint
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-TIMEOUT = 60.0  # seconds, for anything the browser has to render
 SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 
 
@@ -28,9 +27,9 @@ def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, na
     with running_app(solver, animation_seconds=1.0, target=(1.2, 0.5)) as app:
         settle(app)
         page, errors = open_page_collecting_errors(browser, app)
-        before = read_png(page.screenshot(timeout=TIMEOUT * 1000))
+        before = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         page.get_by_text("joint space view").click()  # as a user would: the checkbox's label
-        deadline = time.monotonic() + TIMEOUT
+        deadline = time.monotonic() + BROWSER_TIMEOUT
         while not app.writer.joint_space.shown and time.monotonic() < deadline:
             time.sleep(0.05)
         assert app.writer.joint_space.shown
@@ -42,7 +41,7 @@ def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, na
         app.move_target((0.0, 0.0))  # the base: for l1 = l2 a curve of solutions
         settle(app)
         time.sleep(SETTLE_IN_PAGE)
-        after = read_png(page.screenshot(timeout=TIMEOUT * 1000))
+        after = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         assert not errors, f"{errors[:3]} ({len(errors)} in all)"
         # the page drew something new: the camera moved out and the square appeared
         x, y, width, height = (int(value) for value in canvas_box(page))
