@@ -25,6 +25,7 @@ import torch
 
 from ikdp.arm import validate_target_rows
 from ikdp.kinematics import wrap_angle
+from ikdp.robot_data import installed_copy
 from ikdp.rotations import (
     matrix_to_quaternion,
     quaternion_angle,
@@ -212,9 +213,15 @@ class ChainArm:
 
     def chain_description(self) -> ChainDescription | None:
         """The parsed URDF (links, meshes) for drawing: kept from construction, else re-read from
-        `urdf_path` if that file exists here (an arm rebuilt from a checkpoint), else None."""
-        if self.description is None and self.urdf_path is not None and Path(self.urdf_path).is_file():
-            self.description = read_chain(self.urdf_path, self.ee_link, base_link=self.base_link)
+        `urdf_path` (an arm rebuilt from a checkpoint), else None when no such file is here.
+
+        A checkpoint trained elsewhere records a path of that machine; a file of example-robot-data
+        (the shipped robots') is found again in this environment's install of it.
+        """
+        if self.description is None and self.urdf_path is not None:
+            found = installed_copy(self.urdf_path)
+            if found is not None:
+                self.description = read_chain(found, self.ee_link, base_link=self.base_link)
         return self.description
 
     def __repr__(self) -> str:

@@ -8,13 +8,10 @@ spatial N-link arm (its equations 1-2) is built in code as a URDF string.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import metadata
-from pathlib import Path
 
 from ikdp.chain_arm import ChainArm
+from ikdp.robot_data import example_robot_data_file
 from ikdp.urdf import parse_chain
-
-EXAMPLE_ROBOT_DATA = "example-robot-data"  # the distribution that ships the URDFs and meshes
 
 
 @dataclass(frozen=True)
@@ -35,19 +32,6 @@ ROBOTS = {
 def robot_names() -> list[str]:
     """Names `load_robot` accepts: the URDF robots, then `spatial<N>` for the paper's N-link arm."""
     return [*ROBOTS, "spatial<N>"]
-
-
-def example_robot_data_file(relative: str) -> Path:
-    """A file under example-robot-data's `robots/` folder, located through the installed distribution."""
-    try:
-        distribution = metadata.distribution(EXAMPLE_ROBOT_DATA)
-    except metadata.PackageNotFoundError:
-        raise ValueError(f"robot: the URDFs need `pip install {EXAMPLE_ROBOT_DATA}`, which is not installed") from None
-    suffix = f"robots/{relative}"
-    for file in distribution.files or ():
-        if file.as_posix().endswith(suffix):
-            return Path(distribution.locate_file(file)).resolve()
-    raise ValueError(f"robot: {EXAMPLE_ROBOT_DATA} has no file ending in {suffix!r}")
 
 
 def load_robot(name: str, target: str = "pose") -> ChainArm:

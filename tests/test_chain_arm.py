@@ -266,6 +266,16 @@ def test_config_round_trip_without_the_urdf(panda):
     assert [link.name for link in with_file.chain_description().links] == panda.link_names
 
 
+def test_a_checkpoints_urdf_path_from_another_machine_finds_the_installed_copy(panda):
+    # A shipped checkpoint records the absolute path of the venv it was trained in; here that venv is gone.
+    elsewhere = "/home/someone/venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots/"
+    moved = ChainArm.from_config({**panda.to_config(), "urdf_path": elsewhere + ROBOTS["panda"].urdf})
+    assert [link.name for link in moved.chain_description().links] == panda.link_names
+    assert moved.urdf_path.startswith("/home/someone/")  # still says what it was trained on
+    missing = ChainArm.from_config({**panda.to_config(), "urdf_path": elsewhere + "no_robot/urdf/none.urdf"})
+    assert missing.chain_description() is None
+
+
 def test_robot_names_load(panda):
     assert {"panda", "ur5"} <= set(robot_names())
     assert panda.urdf_path.endswith("panda.urdf") and panda.joint_names[0] == "panda_joint1"

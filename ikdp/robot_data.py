@@ -1,0 +1,42 @@
+"""Robot-description files of the `example-robot-data` wheel, found through its installed file list.
+
+A checkpoint records the absolute URDF path it was trained on, e.g.
+`/home/me/venv/.../example-robot-data/robots/panda_description/urdf/panda.urdf`; on another
+machine or in another environment that path is gone, but the same file is installed under
+another prefix. `installed_copy` finds it there, so the viewer can still draw the robot's meshes.
+"""
+
+from __future__ import annotations
+
+from importlib import metadata
+from pathlib import Path
+
+EXAMPLE_ROBOT_DATA = "example-robot-data"  # the distribution that ships the URDFs and meshes
+ROBOTS_FOLDER = "example-robot-data/robots/"  # where its robot folders lie, under any install prefix
+
+
+def example_robot_data_file(relative: str) -> Path:
+    """A file under example-robot-data's `robots/` folder, located through the installed distribution."""
+    try:
+        distribution = metadata.distribution(EXAMPLE_ROBOT_DATA)
+    except metadata.PackageNotFoundError:
+        raise ValueError(f"robot: the URDFs need `pip install {EXAMPLE_ROBOT_DATA}`, which is not installed") from None
+    suffix = f"robots/{relative}"
+    for file in distribution.files or ():
+        if file.as_posix().endswith(suffix):
+            return Path(distribution.locate_file(file)).resolve()
+    raise ValueError(f"robot: {EXAMPLE_ROBOT_DATA} has no file ending in {suffix!r}")
+
+
+def installed_copy(recorded: str | Path) -> Path | None:
+    """`recorded` if it exists here; else the file of example-robot-data it names, as installed here; else None."""
+    path = Path(recorded)
+    if path.is_file():
+        return path
+    text = path.as_posix()
+    if ROBOTS_FOLDER not in text:
+        return None
+    try:
+        return example_robot_data_file(text.rsplit(ROBOTS_FOLDER, 1)[1])
+    except ValueError:  # not installed, or a file this version does not ship
+        return None
