@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
 COUNT_FRAMES = """(seconds) => new Promise((done) => {
   let frames = 0; const start = performance.now();
   const tick = (now) => { frames += 1; if (now - start < seconds * 1000) requestAnimationFrame(tick);
@@ -47,6 +46,7 @@ class FramesConfig:
     repeats: int = 3  # runs per K; the table gives medians
     target: tuple[float, ...] | None = (-0.010, 1.200)  # the target solved (a robot: None, its first target)
     chromium: str = "/usr/bin/chromium"  # browser executable
+    viewport: tuple[int, int] = (1280, 800)  # the page's width and height, pixels
     output: Path = Path("benchmarks/results/viz_frames.json")  # JSON written here
 
 
@@ -66,6 +66,7 @@ def measure(config: FramesConfig) -> list[Row]:
 
     import ikdp
     from ikdp_viz.app import VizApp
+    from ikdp_viz.screenshot import CHROMIUM_ARGS
 
     torch.set_num_threads(1)
     solver = ikdp.load(config.ckpt)
@@ -79,7 +80,7 @@ def measure(config: FramesConfig) -> list[Row]:
     try:
         with sync_playwright() as playwright:
             browser = playwright.chromium.launch(executable_path=config.chromium, args=CHROMIUM_ARGS)
-            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page = browser.new_page(viewport={"width": config.viewport[0], "height": config.viewport[1]})
             page.goto(f"http://127.0.0.1:{server.get_port()}")
             page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
             for samples in config.samples:

@@ -3,10 +3,13 @@
 `SceneWriter` owns the queue, the solve on screen and the animation; this subclass
 replaces only what a frame looks like. For K samples at one state it draws:
 - the K robots' meshes (the URDF's collision meshes): the highlighted sample opaque, one
-  node per mesh; the others translucent ghosts, one batched node per mesh with K instances
-  (the highlighted one scaled to nothing: a translucent instance drawn before an opaque
-  one in the same node hides it). Coloured from faint (t = T) to dark (t = 0) as the
-  planar arms are;
+  node per mesh; the others translucent ghosts with light hulls of the meshes, one batched
+  node per mesh with K instances (the highlighted one scaled to nothing: a translucent
+  instance drawn before an opaque one in the same node hides it). Coloured from faint
+  (t = T) to dark (t = 0) as the planar arms are. While an animation plays, the ghosts
+  are hidden and the skeletons stand in for them: software WebGL animated K = 16 at 6
+  frames/s with them, 15 without (docs/VIZ.md); a pause, the last state and the slider
+  show them;
 - the K skeletons (joint origins to the hand) as one line-segment node, and as the trail
   the path of each hand through the states before, as another;
 - the highlighted sample's hand frame, and the target as a 6-DoF gizmo that sets the pose.
@@ -22,7 +25,7 @@ import ikdp
 from ikdp_viz import chain_readouts
 from ikdp_viz.chain_scene import ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
 from ikdp_viz.panel import Panel
-from ikdp_viz.robot_meshes import robot_meshes
+from ikdp_viz.robot_meshes import light_mesh, robot_meshes
 from ikdp_viz.scene import REFINED, grid_segments, sample_colors, trail_colors, trail_until
 from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
 
@@ -39,12 +42,8 @@ def grid_cell(reach: float) -> float:
 
 
 def camera_fit_3d(center: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """(position, look_at) of a camera in front of, beside and above the reach ball, seen along (-1, 1, -0.6).
-
-    Both moved along the screen's right, (1, 1, 0) / sqrt 2, so the robot stands left of centre, clear of the panel.
-    """
-    shift = 0.3 * reach * np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
-    return center + reach * np.array([1.0, -1.0, 0.6]) + shift, center + shift
+    """(position, look_at) of a camera in front of, beside and above the reach ball, seen along (-1, 1, -0.6)."""
+    return center + reach * np.array([1.0, -1.0, 0.6]), center.copy()
 
 
 class ChainSceneWriter(SceneWriter):
@@ -141,8 +140,7 @@ class ChainSceneWriter(SceneWriter):
         self.ghosts = [
             scene.add_batched_meshes_simple(
                 f"/samples/robot/{mesh.name}",
-                mesh.vertices,
-                mesh.faces,
+                *light_mesh(mesh.vertices),
                 identity,
                 np.zeros((num_samples, 3)),
                 batched_colors=np.zeros((num_samples, 3), np.uint8),
@@ -233,12 +231,14 @@ class ChainSceneWriter(SceneWriter):
             self.estimate_lines.visible = True
         else:
             self.estimate_lines.visible = False
+        ghosts_shown = not self.animating(state)  # the skeletons stand in while it plays
         for index, node in enumerate(self.ghosts):
-            node.batched_positions = mesh_positions[:, index]
-            node.batched_wxyzs = mesh_wxyzs[:, index]
-            node.batched_colors = colors
-            node.batched_scales = scales
-            node.visible = True
+            if ghosts_shown:
+                node.batched_positions = mesh_positions[:, index]
+                node.batched_wxyzs = mesh_wxyzs[:, index]
+                node.batched_colors = colors
+                node.batched_scales = scales
+            node.visible = ghosts_shown
         for index, node in enumerate(self.robot):
             node.position, node.wxyz = mesh_positions[highlight, index], mesh_wxyzs[highlight, index]
             node.color = tuple(int(channel) for channel in colors[highlight])

@@ -5,6 +5,10 @@ vertices, and software WebGL pays for every one (its visual meshes are .dae, whi
 trimesh reads only with pycollada). Boxes, cylinders and spheres are built; a mesh
 that cannot be read is left out (the skeletons still show the pose), never an
 error: the viewer must open for any chain.
+
+The K translucent ghosts get `light_mesh`es: software WebGL pays for every triangle
+of every ghost in every frame (16 Panda ghosts are 37,000 triangles), and a faint
+ghost reads as well with a 44-face hull.
 """
 
 from __future__ import annotations
@@ -83,3 +87,22 @@ def robot_meshes(arm, *, prefer: str = "collision") -> list[RobotMesh]:
                 )
             )
     return meshes
+
+
+def light_mesh(vertices: np.ndarray, *, points: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """The convex hull of `points` vertices spread over the mesh (farthest-point order): (V, 3) float32, (F, 3) int32.
+
+    At most 2 * points - 4 faces; a mesh with no more vertices than that, or a flat one, is its own hull.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)  # (V, 3)
+    chosen = [0]
+    distance = np.linalg.norm(vertices - vertices[0], axis=1)
+    for _ in range(min(points, len(vertices)) - 1):
+        index = int(distance.argmax())
+        chosen.append(index)
+        distance = np.minimum(distance, np.linalg.norm(vertices - vertices[index], axis=1))
+    try:
+        hull = trimesh.convex.convex_hull(vertices[chosen])
+    except Exception:  # qhull refuses flat or degenerate point sets: the whole mesh's hull then
+        hull = trimesh.convex.convex_hull(vertices)
+    return np.asarray(hull.vertices, dtype=np.float32), np.asarray(hull.faces, dtype=np.int32)

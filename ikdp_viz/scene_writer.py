@@ -63,11 +63,11 @@ PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state
 def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """(position, look_at) of a camera straight above the workspace of radius `reach`, all of it in view.
 
-    +x to the right and +y up (a hair off the pole so "up" is defined), the workspace a little
-    left of centre, clear of the panel on the right.
+    +x to the right and +y up (a hair off the pole so "up" is defined), the workspace centred: the
+    panel has a column of its own (panel.py).
     """
-    distance, shift = 1.55 * reach, 0.25 * reach
-    return (shift, -1e-3 * distance, distance), (shift, 0.0, 0.0)
+    distance = 1.55 * reach
+    return (0.0, -1e-3 * distance, distance), (0.0, 0.0, 0.0)
 
 
 # ------------------------------------------------------------------ messages
@@ -303,10 +303,11 @@ class SceneWriter:
             self._replay_target = None
         wanted = solved.request.animate or released
         animate = wanted and self.panel.play_on_move.value and self.panel.duration.value > 0 and last > 0
-        self._draw_state(0 if animate else last)
-        self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
         if animate:
             self._start(0, last)
+        else:
+            self._draw_state(last)
+        self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
 
     def _show_prior(self, joints: np.ndarray) -> None:
         if self.prior_lines is not None:
@@ -322,7 +323,6 @@ class SceneWriter:
             return
         if not user and not self.panel.play_on_move.value:
             return
-        self._draw_state(0)
         self._start(0, self.solved.view.num_states - 1)
 
     def _toggle_play(self) -> None:
@@ -339,9 +339,10 @@ class SceneWriter:
         self._write_play_label()
 
     def _start(self, first: int, last: int) -> None:
+        """Play from state `first` to `last`: `first` is drawn now, as an animation's frame (the light scene)."""
         seconds_per_state = self.panel.duration.value / max(last, 1)
         self.animation = Animation(first, last, seconds_per_state, time.monotonic())
-        self._write_play_label()
+        self._draw_state(first)
         self._tick()
 
     def _tick(self) -> None:
@@ -455,15 +456,20 @@ class SceneWriter:
         self.refined_tips.visible = final_shown
         self.joint_space.draw(self.solver, solved, state, colors, highlight)
 
-    def trail_states_limit(self, state: int) -> int | None:
-        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end.
+    def animating(self, state: int) -> bool:
+        """`state` is drawn as a frame of a playing animation, not its last: draw the light version of the scene.
 
-        Software WebGL draws every segment in every frame: the full trail at K = 16 (5,184
-        segments) halves the page's frame rate while the animation runs (docs/VIZ.md). A
-        pause, the last state and the slider draw it all.
+        Software WebGL draws everything in every frame, and while an animation plays the page
+        draws every frame: the full trail at K = 16 (5,184 segments) halves its frame rate, 16
+        robot ghosts cost more than half of it (docs/VIZ.md). A pause, the last state and the
+        slider draw it all.
         """
         animation = self.animation
-        return PLAYING_TRAIL_STATES if animation is not None and state < animation.last else None
+        return animation is not None and state < animation.last
+
+    def trail_states_limit(self, state: int) -> int | None:
+        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end."""
+        return PLAYING_TRAIL_STATES if self.animating(state) else None
 
     def _write_play_label(self) -> None:
         playing = self.animation is not None

@@ -15,8 +15,16 @@ from pathlib import Path
 
 from ikdp.shipped import DEFAULT_MODEL
 
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
-NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"  # viser fades its canvas in
+# Debian's chromium with software WebGL, no GPU needed; the browser tests and benchmarks/viz_frames.py use these too
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--enable-unsafe-swiftshader",
+    "--use-angle=swiftshader",
+    "--disable-background-networking",
+]
+# viser fades its canvas in with a CSS transition that software rendering advances slowly
+NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
 
 
 @dataclass(frozen=True)
@@ -25,7 +33,7 @@ class ScreenshotConfig:
 
     output: Path  # PNG to write
     ckpt: str = DEFAULT_MODEL  # a shipped model's name or a checkpoint's path
-    target: tuple[float, float] = (1.9, 1.5)  # target x y
+    target: tuple[float, ...] | None = (1.9, 1.5)  # target x y (a robot: x y z w qx qy qz; None: its first target)
     samples: int = 16  # samples K
     seed: int = 3  # sampling seed
     chromium: str = "/usr/bin/chromium"  # browser executable
@@ -57,7 +65,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     app.panel.samples.value = args.samples
     app.panel.seed.value = args.seed
-    app.move_target(args.target)
+    app.move_target(app.target)  # args.target pulled into the workspace, or the arm's first target
     app.wait_until_still(60)
     try:
         with sync_playwright() as playwright:

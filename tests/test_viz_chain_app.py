@@ -145,6 +145,11 @@ def test_a_pause_draws_the_state_in_full_again(app):
     while app.state < 2 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert app.playing and 0 < app.state < last
+    assert not any(node.visible for node in writer.ghosts)  # while it plays the skeletons stand in for the ghosts
+    assert writer.skeletons.visible and all(node.visible for node in writer.robot)
     app.toggle_play()  # pause
     assert not app.playing and writer.skeletons.visible and all(node.visible for node in writer.ghosts)
+    positions, _ = mesh_poses(app.solver.arm, app.solved.view.pose_at(app.state, 0), writer.mesh_links,
+                              writer.mesh_offsets)  # fmt: skip
+    np.testing.assert_allclose(writer.ghosts[2].batched_positions[0], positions[2], atol=1e-5)  # at the paused state
     assert len(writer.trail.points) == (app.state + 1) * K  # the whole trail up to the state

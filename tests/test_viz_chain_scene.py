@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import torch
+import trimesh
 
 import ikdp
 from ikdp.robots import load_robot, spatial_arm
@@ -22,7 +23,7 @@ from ikdp_viz.chain_scene import (
     pose_target,
     skeleton_segments,
 )
-from ikdp_viz.robot_meshes import robot_meshes
+from ikdp_viz.robot_meshes import light_mesh, robot_meshes
 
 K = 3  # samples per solve: enough to have a best one
 
@@ -118,6 +119,23 @@ def test_mesh_poses_place_each_mesh_on_its_link_for_a_batch_of_poses():
     np.testing.assert_allclose(np.linalg.norm(wxyzs, axis=-1), 1.0, atol=1e-12)
     one_position, _ = mesh_poses(panda, joints[2], links, offsets)  # one pose: (M, 3)
     np.testing.assert_allclose(one_position, positions[2], atol=1e-12)
+
+
+def test_a_ghosts_light_mesh_is_a_small_hull_inside_the_link_mesh_and_as_large():
+    meshes = robot_meshes(load_robot("panda"))
+    for mesh in meshes:
+        vertices, faces = light_mesh(mesh.vertices, points=24)
+        assert vertices.dtype == np.float32 and faces.dtype == np.int32 and faces.max() < len(vertices)
+        assert len(faces) <= 2 * 24 - 4 < len(mesh.faces)  # 44 faces against the collision mesh's 200 to 300
+        hull = trimesh.Trimesh(vertices, faces)
+        assert hull.is_watertight and hull.volume > 0
+        gaps = np.linalg.norm(vertices[:, None] - mesh.vertices[None], axis=-1).min(axis=1)
+        assert gaps.max() < 1e-6  # its corners are the mesh's own vertices: inside the link, never beyond
+        original = trimesh.Trimesh(mesh.vertices, mesh.faces).convex_hull
+        assert hull.volume > 0.6 * original.volume  # the spread points keep most of the link's bulk
+    few = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float32)
+    vertices, faces = light_mesh(few, points=24)  # fewer vertices than points: their own hull
+    assert len(vertices) == 4 and len(faces) == 4
 
 
 def test_an_arm_without_meshes_draws_none_and_a_bad_choice_is_refused():

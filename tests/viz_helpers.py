@@ -16,18 +16,9 @@ import torch
 
 import ikdp
 from ikdp import SolveResult
+from ikdp_viz.screenshot import CHROMIUM_ARGS, NO_FADE_CSS  # noqa: F401  (the browser tests take them from here)
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--enable-unsafe-swiftshader",
-    "--use-angle=swiftshader",
-    "--disable-background-networking",
-]
-# viser fades its canvas in with a CSS transition that software rendering advances slowly; the
-# pixels under test are the scene's, so the fade is switched off in the page.
-NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
 BROWSER_TIMEOUT = 60.0  # seconds, for anything the browser has to render
 
 
