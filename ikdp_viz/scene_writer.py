@@ -57,7 +57,8 @@ PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
-PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_TRAIL_STATES = 4  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
 
 def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -166,6 +167,7 @@ class SceneWriter:
         self.state = 0  # index of the state on screen
         self.error: str | None = None  # the newest solve's failure, shown in the readouts
         self.animation: Animation | None = None  # the playing animation, None when still
+        self._panel_written = -np.inf  # time.monotonic() of the last state written to the panel
         self._replay_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
         # still the newest; for benchmarks/viz_latency.py
@@ -342,6 +344,7 @@ class SceneWriter:
         """Play from state `first` to `last`: `first` is drawn now, as an animation's frame (the light scene)."""
         seconds_per_state = self.panel.duration.value / max(last, 1)
         self.animation = Animation(first, last, seconds_per_state, time.monotonic())
+        self._panel_written = -np.inf  # the panel shows where it starts
         self._draw_state(first)
         self._tick()
 
@@ -410,11 +413,17 @@ class SceneWriter:
         state = int(np.clip(state, 0, view.num_states - 1))
         self.state = state
         highlight = self.highlight_index()
+        now = time.monotonic()
+        # Any change in the panel makes the page redraw it with the canvas, 7 to 10 ms more a frame in
+        # software WebGL (docs/VIZ.md): while playing it follows a few times a second, and every still frame.
+        write_panel = not self.animating(state) or now - self._panel_written >= 1.0 / PLAYING_PANEL_WRITES
         with self.server.atomic():
             self._draw_arms(solved, state, highlight)
-            self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
-            self.panel.plot.data = error_curves(view, highlight, state)
-            self._write_readouts()
+            if write_panel:
+                self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
+                self.panel.plot.data = error_curves(view, highlight, state)
+                self._write_readouts()
+                self._panel_written = now
             self._write_play_label()
 
     def _draw_arms(self, solved, state: int, highlight: int) -> None:
