@@ -26,13 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-COUNT_FRAMES = """(seconds) => new Promise((done) => {
-  let frames = 0; const start = performance.now();
-  const tick = (now) => { frames += 1; if (now - start < seconds * 1000) requestAnimationFrame(tick);
-                          else done([frames, (now - start) / 1000]); };
-  requestAnimationFrame(tick);
-})"""
-
 
 @dataclass(frozen=True)
 class FramesConfig:
@@ -66,7 +59,7 @@ def measure(config: FramesConfig) -> list[Row]:
 
     import ikdp
     from ikdp_viz.app import VizApp
-    from ikdp_viz.screenshot import CHROMIUM_ARGS
+    from ikdp_viz.screenshot import CHROMIUM_ARGS, COUNT_FRAMES
 
     torch.set_num_threads(1)
     solver = ikdp.load(config.ckpt)

@@ -23,6 +23,14 @@ CHROMIUM_ARGS = [
     "--use-angle=swiftshader",
     "--disable-background-networking",
 ]
+# The page counts its own requestAnimationFrame callbacks for `seconds`: [frames, elapsed seconds]
+# (benchmarks/viz_frames.py, viz_frame_costs.py)
+COUNT_FRAMES = """(seconds) => new Promise((done) => {
+  let frames = 0; const start = performance.now();
+  const tick = (now) => { frames += 1; if (now - start < seconds * 1000) requestAnimationFrame(tick);
+                          else done([frames, (now - start) / 1000]); };
+  requestAnimationFrame(tick);
+})"""
 # viser fades its canvas in with a CSS transition that software rendering advances slowly
 NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
 

@@ -12,7 +12,7 @@ import trimesh
 import ikdp
 from ikdp.robots import load_robot, spatial_arm
 from ikdp_viz.arm_kinds import ChainKind, arm_kind
-from ikdp_viz.chain_readouts import chain_solve_text, error_pair, pose_text
+from ikdp_viz.chain_readouts import chain_model_text, chain_solve_text, error_pair, pose_text
 from ikdp_viz.chain_scene import (
     build_chain_view,
     ghost_colors,
@@ -136,6 +136,14 @@ def test_a_ghosts_light_mesh_is_a_small_hull_inside_the_link_mesh_and_as_large()
     few = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=np.float32)
     vertices, faces = light_mesh(few, points=24)  # fewer vertices than points: their own hull
     assert len(vertices) == 4 and len(faces) == 4
+
+
+def test_the_model_text_says_when_the_robots_meshes_are_not_here():
+    panda = load_robot("panda")
+    assert "No meshes" not in chain_model_text(panda, 100, {})
+    elsewhere = ikdp.ChainArm.from_config({**panda.to_config(), "urdf_path": "/gone/panda.urdf"})
+    text = chain_model_text(elsewhere, 100, {})
+    assert "**No meshes**" in text and "/gone/panda.urdf" in text and "example-robot-data" in text
 
 
 def test_an_arm_without_meshes_draws_none_and_a_bad_choice_is_refused():

@@ -1,0 +1,182 @@
+"""What each part of a playing frame costs the viewer's page, interleaved in one page: ms a frame, medians.
+
+    python benchmarks/viz_frame_costs.py                  # planar ikdp_n4, K = 16, 4 rounds of 3 s per variant
+
+benchmarks/viz_frames.py counts the frames of whole animations, one setting per run, and
+this shared 2-core machine moves those counts by a fifth from one run to the next. Here one
+page stays open, and the server writes a state of the K = 16 denoising 20 times a second,
+as an animation does (states 40 to 80 in a loop, the frame a playing animation draws), while
+the variants below take turns, `--rounds` times: a difference of a few ms a frame shows.
+
+  as shipped          the playing frame: 4 trail states, the panel at most 6 times a second
+  panel every state   the slider, chart and readouts written with every state
+  6 trail states      the trail of the previous sessions
+  80-face spheres     the joints and tips as before (one extra hidden node each, swapped in)
+  nothing written     the last frame stands; only a tiny message keeps the page drawing
+  nothing drawn       every node hidden, the same tiny message
+
+Prints a table and writes JSON.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import platform
+import statistics
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+VARIANTS = ("as shipped", "panel every state", "6 trail states", "80-face spheres", "nothing written", "nothing drawn")
+
+
+@dataclass(frozen=True)
+class CostsConfig:
+    """Milliseconds a frame of the playing page, per variant, interleaved."""
+
+    ckpt: str = "ikdp_n4"  # a planar shipped model's name or a checkpoint's path
+    samples: int = 16  # K
+    rounds: int = 4  # each variant is counted this many times, in turn with the others
+    seconds: float = 3.0  # frames counted per turn
+    target: tuple[float, float] = (-0.010, 1.200)  # the target solved
+    chromium: str = "/usr/bin/chromium"  # browser executable
+    viewport: tuple[int, int] = (1280, 800)  # the page's width and height, pixels
+    output: Path = Path("benchmarks/results/viz_frame_costs.json")  # JSON written here
+
+
+def measure(config: CostsConfig) -> dict[str, list[float]]:
+    import torch
+    import trimesh
+    import viser
+    from playwright.sync_api import sync_playwright
+
+    import ikdp
+    from ikdp_viz import scene_writer
+    from ikdp_viz.app import VizApp
+    from ikdp_viz.screenshot import CHROMIUM_ARGS, COUNT_FRAMES
+
+    torch.set_num_threads(1)
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = VizApp(server, ikdp.load(config.ckpt), solve_now=False, animation_seconds=0.0, target=config.target)
+    writer = app.writer
+    chosen = {"variant": "nothing written", "panel_written": 0.0, "trail_states": scene_writer.PLAYING_TRAIL_STATES}
+    writer.trail_states_limit = lambda state: chosen["trail_states"]  # every frame here is a playing one
+    keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
+    dense: dict = {}  # the 80-face joints and tips, hidden but for their variant
+
+    def write(state: int) -> None:
+        """On the writer's thread: one state of the playing denoising, as the variant asks."""
+        variant, view = chosen["variant"], writer.solved.view
+        with server.atomic():
+            keep_drawing.position = (50.0 + 1e-3 * (state % 2), 50.0, 0.0)
+            if variant.startswith("nothing"):
+                return
+            writer._draw_arms(writer.solved, state, writer.highlight_index())
+            if variant == "80-face spheres":
+                for name in ("joints", "tips"):
+                    node = getattr(writer, name)
+                    dense[name].batched_positions, dense[name].batched_colors = (
+                        node.batched_positions,
+                        node.batched_colors,
+                    )
+                    node.visible = False
+            every = 0.0 if variant == "panel every state" else 1.0 / scene_writer.PLAYING_PANEL_WRITES
+            if time.monotonic() - chosen["panel_written"] >= every:
+                writer.panel.timestep.value = int(view.labels[state])
+                writer.panel.plot.data = scene_writer.error_curves(view, writer.highlight_index(), state)
+                writer.state = state
+                writer._write_readouts()
+                chosen["panel_written"] = time.monotonic()
+
+    def switch(variant: str) -> None:
+        """On the writer's thread: from now on, draw `variant`."""
+        chosen["variant"] = variant
+        chosen["trail_states"] = 6 if variant == "6 trail states" else scene_writer.PLAYING_TRAIL_STATES
+        for node in dense.values():
+            node.visible = variant == "80-face spheres"
+        drawn = variant != "nothing drawn"
+        for node in (*writer._static_nodes, writer.cross, writer.trail, writer.links, writer.joints, writer.tips):
+            node.visible = drawn
+
+    stop = threading.Event()
+
+    def twenty_states_a_second() -> None:
+        step = 0
+        while not stop.is_set():
+            step += 1
+            writer.post(scene_writer.Call(lambda _, state=40 + step % 41: write(state)))
+            time.sleep(0.05)
+
+    results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}
+    try:
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=config.chromium, args=CHROMIUM_ARGS)
+            page = browser.new_page(viewport={"width": config.viewport[0], "height": config.viewport[1]})
+            page.goto(f"http://127.0.0.1:{server.get_port()}")
+            page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
+            app.panel.samples.value = config.samples
+            app.move_target(config.target)
+            assert app.wait_until_still(120), "the solve did not finish"
+            sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.sizes.joint)
+            for name in ("joints", "tips"):
+                node = getattr(writer, name)
+                dense[name] = server.scene.add_batched_meshes_simple(
+                    f"/dense_{name}", sphere.vertices, sphere.faces, node.batched_wxyzs, node.batched_positions,
+                    batched_colors=node.batched_colors, lod="off", cast_shadow=False, receive_shadow=False,
+                    visible=False,
+                )  # fmt: skip
+            threading.Thread(target=twenty_states_a_second, daemon=True).start()
+            page.evaluate(COUNT_FRAMES, 2.0)
+            for _ in range(config.rounds):
+                for variant in VARIANTS:
+                    writer.post(scene_writer.Call(lambda _, variant=variant: switch(variant)))
+                    writer.flush()
+                    page.evaluate(COUNT_FRAMES, 0.5)  # let the switch reach the page
+                    frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)
+                    results[variant].append(1000.0 * elapsed / frames)
+                    print(f"{variant}: {results[variant][-1]:.1f} ms a frame", flush=True)
+            browser.close()
+    finally:
+        stop.set()
+        app.close()
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
+    return results
+
+
+def main(argv: list[str] | None = None) -> None:
+    import tyro
+
+    config = tyro.cli(CostsConfig, args=argv)
+    started = time.time()
+    results = measure(config)
+    shipped = statistics.median(results["as shipped"])
+    medians = {variant: statistics.median(times) for variant, times in results.items()}
+    rows = [
+        {"variant": variant, "ms_per_frame": median, "frames_per_second": 1000 / median,
+         "ms_more_than_shipped": median - shipped, "runs": results[variant]}
+        for variant, median in medians.items()
+    ]  # fmt: skip
+    print(f"\n{'variant':<20} {'ms a frame':>10} {'frames/s':>9} {'vs shipped':>11}")
+    for row in rows:
+        print(f"{row['variant']:<20} {row['ms_per_frame']:>10.1f} {row['frames_per_second']:>9.1f} "
+              f"{row['ms_more_than_shipped']:>+11.1f}")  # fmt: skip
+    load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
+    result = {
+        "config": {key: str(value) if isinstance(value, Path) else value for key, value in asdict(config).items()},
+        "rows": rows,
+        "machine": {"platform": platform.platform(), "python": sys.version.split()[0], "load_average": load},
+        "seconds": round(time.time() - started, 1),
+    }
+    config.output.parent.mkdir(parents=True, exist_ok=True)
+    config.output.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {config.output}")
+
+
+if __name__ == "__main__":
+    main()
