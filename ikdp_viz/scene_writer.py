@@ -50,8 +50,8 @@ from ikdp_viz.scene import (
 from ikdp_viz.solving import Solved
 
 TARGET_RED = (220, 25, 25)
-GRID_CELL = (236, 236, 236)  # a 3-D floor grid's minor lines
-GRID_SECTION = (212, 212, 212)  # the planar grid's lines, one per mean bone length; a 3-D grid's major lines
+GRID_CELL = (236, 236, 236)  # grid lines every half bone length
+GRID_SECTION = (212, 212, 212)  # grid lines every mean bone length
 ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
@@ -513,10 +513,12 @@ class SceneWriter:
         inner, outer = self.solver.reach
         unit = float(np.mean(lengths))
         extent = 2 * float(np.ceil((outer + unit) / unit)) * unit
-        # a line per bone length: software WebGL pays for every pixel of line, and the half-length cells
-        # cost the page 6 ms more a frame, a tenth of it while the denoising plays (docs/VIZ.md)
-        grid, _ = grid_segments(extent / 2, unit, unit, z=-0.02 * unit)
-        nodes = [scene.add_line_segments("/grid", grid, colors=GRID_SECTION, thickness=1.0, thickness_units="screen")]
+        # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
+        # 82 lines cost the page as much as the 16 arms (docs/VIZ.md)
+        grid, sections = grid_segments(extent / 2, unit / 2, unit, z=-0.02 * unit)
+        grid_colors = np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8)
+        grid_colors = np.broadcast_to(grid_colors, grid.shape).copy()
+        nodes = [scene.add_line_segments("/grid", grid, colors=grid_colors, thickness=1.0, thickness_units="screen")]
         for name, radius in (("outer", outer), ("inner", inner)):
             if radius > 0:
                 nodes.append(
