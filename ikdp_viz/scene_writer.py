@@ -57,7 +57,7 @@ PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
-PLAYING_TRAIL_STATES = 4  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
 PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
 
