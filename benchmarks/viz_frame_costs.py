@@ -8,10 +8,10 @@ page stays open, and the server writes a state of the K = 16 denoising 20 times 
 as an animation does (states 40 to 80 in a loop, the frame a playing animation draws), while
 the variants below take turns, `--rounds` times: a difference of a few ms a frame shows.
 
-  as shipped          the playing frame: 4 trail states, the panel at most 6 times a second
+  as shipped          the playing frame: 6 trail states, the panel at most 6 times a second
   panel every state   the slider, chart and readouts written with every state
-  6 trail states      the trail of the previous sessions
-  80-face spheres     the joints and tips as before (one extra hidden node each, swapped in)
+  4 trail states      a lighter trail
+  20-face spheres     icosahedra for the joints and tips (an extra hidden node each, swapped in)
   nothing written     the last frame stands; only a tiny message keeps the page drawing
   nothing drawn       every node hidden, the same tiny message
 
@@ -31,7 +31,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-VARIANTS = ("as shipped", "panel every state", "6 trail states", "80-face spheres", "nothing written", "nothing drawn")
+VARIANTS = ("as shipped", "panel every state", "4 trail states", "20-face spheres", "nothing written", "nothing drawn")
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     chosen = {"variant": "nothing written", "panel_written": 0.0, "trail_states": scene_writer.PLAYING_TRAIL_STATES}
     writer.trail_states_limit = lambda state: chosen["trail_states"]  # every frame here is a playing one
     keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
-    dense: dict = {}  # the 80-face joints and tips, hidden but for their variant
+    light: dict = {}  # the 20-face joints and tips, hidden but for their variant
 
     def write(state: int) -> None:
         """On the writer's thread: one state of the playing denoising, as the variant asks."""
@@ -77,10 +77,10 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             if variant.startswith("nothing"):
                 return
             writer._draw_arms(writer.solved, state, writer.highlight_index())
-            if variant == "80-face spheres":
+            if variant == "20-face spheres":
                 for name in ("joints", "tips"):
                     node = getattr(writer, name)
-                    dense[name].batched_positions, dense[name].batched_colors = (
+                    light[name].batched_positions, light[name].batched_colors = (
                         node.batched_positions,
                         node.batched_colors,
                     )
@@ -96,9 +96,9 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     def switch(variant: str) -> None:
         """On the writer's thread: from now on, draw `variant`."""
         chosen["variant"] = variant
-        chosen["trail_states"] = 6 if variant == "6 trail states" else scene_writer.PLAYING_TRAIL_STATES
-        for node in dense.values():
-            node.visible = variant == "80-face spheres"
+        chosen["trail_states"] = 4 if variant == "4 trail states" else scene_writer.PLAYING_TRAIL_STATES
+        for node in light.values():
+            node.visible = variant == "20-face spheres"
         drawn = variant != "nothing drawn"
         for node in (*writer._static_nodes, writer.cross, writer.trail, writer.links, writer.joints, writer.tips):
             node.visible = drawn
@@ -122,11 +122,11 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             app.panel.samples.value = config.samples
             app.move_target(config.target)
             assert app.wait_until_still(120), "the solve did not finish"
-            sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.sizes.joint)
+            sphere = trimesh.creation.icosphere(subdivisions=0, radius=writer.sizes.joint)
             for name in ("joints", "tips"):
                 node = getattr(writer, name)
-                dense[name] = server.scene.add_batched_meshes_simple(
-                    f"/dense_{name}", sphere.vertices, sphere.faces, node.batched_wxyzs, node.batched_positions,
+                light[name] = server.scene.add_batched_meshes_simple(
+                    f"/light_{name}", sphere.vertices, sphere.faces, node.batched_wxyzs, node.batched_positions,
                     batched_colors=node.batched_colors, lod="off", cast_shadow=False, receive_shadow=False,
                     visible=False,
                 )  # fmt: skip
