@@ -1,17 +1,18 @@
 """What each part of a playing frame costs the viewer's page, interleaved in one page: ms a frame, medians.
 
-    python benchmarks/viz_frame_costs.py                  # planar ikdp_n4, K = 16, 4 rounds of 3 s per variant
+    python benchmarks/viz_frame_costs.py                  # planar ikdp_n4, K = 16, 8 rounds of 3 s per variant
 
 benchmarks/viz_frames.py counts the frames of whole animations, one setting per run, and
 this shared 2-core machine moves those counts by a fifth from one run to the next. Here one
 page stays open, and the server writes a state of the K = 16 denoising 20 times a second,
 as an animation does (states 40 to 80 in a loop, the frame a playing animation draws), while
-the variants below take turns, `--rounds` times: a difference of a few ms a frame shows.
+the variants below take turns in a new order each round, `--rounds` times: one 3 s count
+swings by 10 ms a frame here, so only medians over many rounds resolve a few ms.
 
   as shipped          the playing frame: 6 trail states, the panel at most 6 times a second
   panel every state   the slider, chart and readouts written with every state
   4 trail states      a lighter trail
-  20-face spheres     icosahedra for the joints and tips (an extra hidden node each, swapped in)
+  80-face spheres     the joints and tips as before the fourth session (an extra hidden node each, swapped in)
   nothing written     the last frame stands; only a tiny message keeps the page drawing
   nothing drawn       every node hidden, the same tiny message
 
@@ -24,6 +25,7 @@ import contextlib
 import io
 import json
 import platform
+import random
 import statistics
 import sys
 import threading
@@ -31,7 +33,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-VARIANTS = ("as shipped", "panel every state", "4 trail states", "20-face spheres", "nothing written", "nothing drawn")
+VARIANTS = ("as shipped", "panel every state", "4 trail states", "80-face spheres", "nothing written", "nothing drawn")
 
 
 @dataclass(frozen=True)
@@ -40,8 +42,9 @@ class CostsConfig:
 
     ckpt: str = "ikdp_n4"  # a planar shipped model's name or a checkpoint's path
     samples: int = 16  # K
-    rounds: int = 4  # each variant is counted this many times, in turn with the others
+    rounds: int = 8  # each variant is counted this many times, in turn with the others
     seconds: float = 3.0  # frames counted per turn
+    seed: int = 0  # the turns' order, shuffled each round
     target: tuple[float, float] = (-0.010, 1.200)  # the target solved
     chromium: str = "/usr/bin/chromium"  # browser executable
     viewport: tuple[int, int] = (1280, 800)  # the page's width and height, pixels
@@ -67,7 +70,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     chosen = {"variant": "nothing written", "panel_written": 0.0, "trail_states": scene_writer.PLAYING_TRAIL_STATES}
     writer.trail_states_limit = lambda state: chosen["trail_states"]  # every frame here is a playing one
     keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
-    light: dict = {}  # the 20-face joints and tips, hidden but for their variant
+    light: dict = {}  # the 80-face joints and tips, hidden but for their variant
 
     def write(state: int) -> None:
         """On the writer's thread: one state of the playing denoising, as the variant asks."""
@@ -77,7 +80,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             if variant.startswith("nothing"):
                 return
             writer._draw_arms(writer.solved, state, writer.highlight_index())
-            if variant == "20-face spheres":
+            if variant == "80-face spheres":
                 for name in ("joints", "tips"):
                     node = getattr(writer, name)
                     light[name].batched_positions, light[name].batched_colors = (
@@ -98,7 +101,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
         chosen["variant"] = variant
         chosen["trail_states"] = 4 if variant == "4 trail states" else scene_writer.PLAYING_TRAIL_STATES
         for node in light.values():
-            node.visible = variant == "20-face spheres"
+            node.visible = variant == "80-face spheres"
         drawn = variant != "nothing drawn"
         for node in (*writer._static_nodes, writer.cross, writer.trail, writer.links, writer.joints, writer.tips):
             node.visible = drawn
@@ -122,7 +125,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             app.panel.samples.value = config.samples
             app.move_target(config.target)
             assert app.wait_until_still(120), "the solve did not finish"
-            sphere = trimesh.creation.icosphere(subdivisions=0, radius=writer.sizes.joint)
+            sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.sizes.joint)
             for name in ("joints", "tips"):
                 node = getattr(writer, name)
                 light[name] = server.scene.add_batched_meshes_simple(
@@ -132,11 +135,14 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
                 )  # fmt: skip
             threading.Thread(target=twenty_states_a_second, daemon=True).start()
             page.evaluate(COUNT_FRAMES, 2.0)
+            order = random.Random(config.seed)
             for _ in range(config.rounds):
-                for variant in VARIANTS:
+                # a new order each round: a variant always following the same one inherits its after-effects
+                # (the first frames after "nothing drawn" shows every node again are slow)
+                for variant in order.sample(VARIANTS, len(VARIANTS)):
                     writer.post(scene_writer.Call(lambda _, variant=variant: switch(variant)))
                     writer.flush()
-                    page.evaluate(COUNT_FRAMES, 0.5)  # let the switch reach the page
+                    page.evaluate(COUNT_FRAMES, 1.0)  # let the switch reach the page, uncounted
                     frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)
                     results[variant].append(1000.0 * elapsed / frames)
                     print(f"{variant}: {results[variant][-1]:.1f} ms a frame", flush=True)

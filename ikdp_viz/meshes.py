@@ -27,8 +27,12 @@ class ArmSizes:
 
 
 def sphere_mesh(radius: float) -> trimesh.Trimesh:
-    """80 faces: software WebGL pays for every one, K (N + 1) times a frame."""
-    return trimesh.creation.icosphere(subdivisions=1, radius=radius)
+    """An icosahedron, 20 faces: software WebGL pays for every triangle, K (N + 1) times a frame.
+
+    At K = 16, N = 4 the 80-face sphere cost the playing page 8 ms a frame more (benchmarks/
+    viz_frame_costs.py, 8 rounds); a dozen pixels across, the lit icosahedron reads as a dot all the same.
+    """
+    return trimesh.creation.icosphere(subdivisions=0, radius=radius)
 
 
 def base_mesh(radius: float) -> trimesh.Trimesh:
