@@ -5,7 +5,7 @@
     python benchmarks/viz_frames.py --ckpt ikdp_panda --samples 16 --output benchmarks/results/viz_frames_panda.json
 
 The app runs in-process on a free port; Debian's chromium (software WebGL, the
-flags of tests/viz_helpers.py) opens it. For each K the page counts its
+flags in ikdp_viz/screenshot.py) opens it. For each K the page counts its
 requestAnimationFrame callbacks over the animation, and, as the baseline timed in
 the same run, over as long a time with the final pose standing still. The server
 side counts the states it wrote. Prints a table and writes JSON (medians of
