@@ -84,8 +84,8 @@ def build_panel(
     model_text: str,
 ) -> Panel:
     # The panel in a column of its own beside the canvas, not floating over it: the canvas has a quarter fewer
-    # pixels and the page stops compositing the panel over each frame. Software WebGL animated K = 16 at
-    # 11.7-12.9 frames/s with the floating panel and 14.2-17.0 with this (docs/VIZ.md).
+    # pixels and the page stops compositing the panel over each frame (software WebGL, K = 16 animating:
+    # 11.7 and 12.7 frames/s floating, 14.2 to 17.0 docked; docs/VIZ.md).
     gui.main_panel.dock_right()
     with gui.add_folder("Target"):
         target_text = gui.add_markdown("")

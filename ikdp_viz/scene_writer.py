@@ -414,8 +414,8 @@ class SceneWriter:
         self.state = state
         highlight = self.highlight_index()
         now = time.monotonic()
-        # Any change in the panel makes the page redraw it with the canvas, 7 to 10 ms more a frame in
-        # software WebGL (docs/VIZ.md): while playing it follows a few times a second, and every still frame.
+        # Writing the panel with every state cost the playing page 5.4 ms a frame more in software WebGL
+        # (benchmarks/viz_frame_costs.py): while playing it follows a few times a second; still frames write it.
         write_panel = not self.animating(state) or now - self._panel_written >= 1.0 / PLAYING_PANEL_WRITES
         with self.server.atomic():
             self._draw_arms(solved, state, highlight)
