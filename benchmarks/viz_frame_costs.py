@@ -60,7 +60,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     import ikdp
     from ikdp_viz import scene_writer
     from ikdp_viz.app import VizApp
-    from ikdp_viz.screenshot import CHROMIUM_ARGS, COUNT_FRAMES
+    from ikdp_viz.screenshot import COUNT_FRAMES, open_viewer_page
 
     torch.set_num_threads(1)
     with contextlib.redirect_stdout(io.StringIO()):
@@ -118,10 +118,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}
     try:
         with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=config.chromium, args=CHROMIUM_ARGS)
-            page = browser.new_page(viewport={"width": config.viewport[0], "height": config.viewport[1]})
-            page.goto(f"http://127.0.0.1:{server.get_port()}")
-            page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
+            browser, page = open_viewer_page(playwright, server, chromium=config.chromium, viewport=config.viewport)
             app.panel.samples.value = config.samples
             app.move_target(config.target)
             assert app.wait_until_still(120), "the solve did not finish"

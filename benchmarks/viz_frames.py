@@ -59,7 +59,7 @@ def measure(config: FramesConfig) -> list[Row]:
 
     import ikdp
     from ikdp_viz.app import VizApp
-    from ikdp_viz.screenshot import CHROMIUM_ARGS, COUNT_FRAMES
+    from ikdp_viz.screenshot import COUNT_FRAMES, open_viewer_page
 
     torch.set_num_threads(1)
     solver = ikdp.load(config.ckpt)
@@ -72,10 +72,7 @@ def measure(config: FramesConfig) -> list[Row]:
     rows = []
     try:
         with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=config.chromium, args=CHROMIUM_ARGS)
-            page = browser.new_page(viewport={"width": config.viewport[0], "height": config.viewport[1]})
-            page.goto(f"http://127.0.0.1:{server.get_port()}")
-            page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
+            browser, page = open_viewer_page(playwright, server, chromium=config.chromium, viewport=config.viewport)
             for samples in config.samples:
                 app.panel.samples.value = samples
                 app.move_target(target)

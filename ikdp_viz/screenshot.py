@@ -35,6 +35,15 @@ COUNT_FRAMES = """(seconds) => new Promise((done) => {
 NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
 
 
+def open_viewer_page(playwright, server, *, chromium: str, viewport: tuple[int, int]):
+    """Debian's chromium (software WebGL) on the viewer that `server` serves, once connected: (browser, page)."""
+    browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+    page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
+    page.goto(f"http://127.0.0.1:{server.get_port()}")
+    page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
+    return browser, page
+
+
 @dataclass(frozen=True)
 class ScreenshotConfig:
     """A screenshot of the viewer in headless chromium, for the docs."""
@@ -77,11 +86,8 @@ def main(argv: list[str] | None = None) -> None:
     app.wait_until_still(60)
     try:
         with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=args.chromium, args=CHROMIUM_ARGS)
-            page = browser.new_page(viewport={"width": args.size[0], "height": args.size[1]})
-            page.goto(f"http://127.0.0.1:{server.get_port()}")
+            browser, page = open_viewer_page(playwright, server, chromium=args.chromium, viewport=args.size)
             page.add_style_tag(content=NO_FADE_CSS)
-            page.get_by_text("Connected", exact=True).wait_for(timeout=60_000)
             with contextlib.suppress(Exception):  # the software-rendering notice covers a corner of the scene
                 page.locator(".mantine-Notification-closeButton").first.click(timeout=5_000)
             page.get_by_text("Sampling", exact=True).click()  # fold it, so the readouts and the plot show
