@@ -67,14 +67,14 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = VizApp(server, ikdp.load(config.ckpt), solve_now=False, animation_seconds=0.0, target=config.target)
     writer = app.writer
-    chosen = {"variant": "nothing written", "panel_written": 0.0, "trail_states": scene_writer.PLAYING_TRAIL_STATES}
+    chosen = {"variant": "nothing written", "trail_states": scene_writer.PLAYING_TRAIL_STATES}
     writer.trail_states_limit = lambda state: chosen["trail_states"]  # every frame here is a playing one
     keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
-    light: dict = {}  # the 80-face joints and tips, hidden but for their variant
+    dense: dict = {}  # the 80-face joints and tips, hidden but for their variant
 
     def write(state: int) -> None:
         """On the writer's thread: one state of the playing denoising, as the variant asks."""
-        variant, view = chosen["variant"], writer.solved.view
+        variant = chosen["variant"]
         with server.atomic():
             keep_drawing.position = (50.0 + 1e-3 * (state % 2), 50.0, 0.0)
             if variant.startswith("nothing"):
@@ -83,24 +83,21 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             if variant == "80-face spheres":
                 for name in ("joints", "tips"):
                     node = getattr(writer, name)
-                    light[name].batched_positions, light[name].batched_colors = (
+                    dense[name].batched_positions, dense[name].batched_colors = (
                         node.batched_positions,
                         node.batched_colors,
                     )
                     node.visible = False
             every = 0.0 if variant == "panel every state" else 1.0 / scene_writer.PLAYING_PANEL_WRITES
-            if time.monotonic() - chosen["panel_written"] >= every:
-                writer.panel.timestep.value = int(view.labels[state])
-                writer.panel.plot.data = scene_writer.error_curves(view, writer.highlight_index(), state)
+            if time.monotonic() - writer._panel_written >= every:
                 writer.state = state
-                writer._write_readouts()
-                chosen["panel_written"] = time.monotonic()
+                writer.write_panel_state(time.monotonic())
 
     def switch(variant: str) -> None:
         """On the writer's thread: from now on, draw `variant`."""
         chosen["variant"] = variant
         chosen["trail_states"] = 4 if variant == "4 trail states" else scene_writer.PLAYING_TRAIL_STATES
-        for node in light.values():
+        for node in dense.values():
             node.visible = variant == "80-face spheres"
         drawn = variant != "nothing drawn"
         for node in (*writer._static_nodes, writer.cross, writer.trail, writer.links, writer.joints, writer.tips):
@@ -125,8 +122,8 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.sizes.joint)
             for name in ("joints", "tips"):
                 node = getattr(writer, name)
-                light[name] = server.scene.add_batched_meshes_simple(
-                    f"/light_{name}", sphere.vertices, sphere.faces, node.batched_wxyzs, node.batched_positions,
+                dense[name] = server.scene.add_batched_meshes_simple(
+                    f"/dense_{name}", sphere.vertices, sphere.faces, node.batched_wxyzs, node.batched_positions,
                     batched_colors=node.batched_colors, lod="off", cast_shadow=False, receive_shadow=False,
                     visible=False,
                 )  # fmt: skip

@@ -1,8 +1,9 @@
-"""Frames per second the viewer's page renders in headless chromium while the denoising plays, at K = 1, 16, 64.
+r"""Frames per second the viewer's page renders in headless chromium while the denoising plays, at K = 1, 16, 64.
 
     python benchmarks/viz_frames.py                      # the shipped ikdp_n4, a 4 s animation
     python benchmarks/viz_frames.py --samples 16 --seconds 2
-    python benchmarks/viz_frames.py --ckpt ikdp_panda --samples 16 --output benchmarks/results/viz_frames_panda.json
+    python benchmarks/viz_frames.py --ckpt ikdp_panda --sampler ddpm --samples 1 16 \
+        --output benchmarks/results/viz_frames_panda.json
 
 The app runs in-process on a free port; Debian's chromium (software WebGL, the
 flags in ikdp_viz/screenshot.py) opens it. For each K the page counts its

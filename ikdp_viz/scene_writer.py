@@ -420,11 +420,16 @@ class SceneWriter:
         with self.server.atomic():
             self._draw_arms(solved, state, highlight)
             if write_panel:
-                self.panel.timestep.value = int(view.labels[state])  # the app ignores slider updates with no client
-                self.panel.plot.data = error_curves(view, highlight, state)
-                self._write_readouts()
-                self._panel_written = now
+                self.write_panel_state(now)
             self._write_play_label()
+
+    def write_panel_state(self, now: float) -> None:
+        """The slider, the chart's dot and the readouts at the state on screen; `now` is when (time.monotonic())."""
+        view, highlight = self.solved.view, self.highlight_index()
+        self.panel.timestep.value = int(view.labels[self.state])  # the app ignores slider updates with no client
+        self.panel.plot.data = error_curves(view, highlight, self.state)
+        self._write_readouts()
+        self._panel_written = now
 
     def _draw_arms(self, solved, state: int, highlight: int) -> None:
         """The planar frame: the trail up to `state`, the arms (and x̂0) at `state`, the joint space view."""

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ikdp.shipped import DEFAULT_MODEL
 
-# Debian's chromium with software WebGL, no GPU needed; the browser tests and benchmarks/viz_frames.py use these too
+# Debian's chromium with software WebGL, no GPU needed; the browser tests and the frame benchmarks use these too
 CHROMIUM_ARGS = [
     "--headless",
     "--no-sandbox",
