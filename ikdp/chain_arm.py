@@ -286,6 +286,9 @@ class ChainArm:
                 "limits": self._limits,
                 "continuous": self._continuous,
                 "link_offsets": self._link_offsets,
+                # made once per device: a host-to-device copy per call would break CUDA-graph capture
+                "prismatic": torch.tensor([kind == "prismatic" for kind in self.joint_types]),
+                "link_parents": torch.tensor(self.link_frames) + 1,  # -1 (base) -> row 0
             }
             self._constants[key] = {
                 name: value.to(device=like.device, dtype=like.dtype if value.is_floating_point() else value.dtype)
@@ -379,16 +382,14 @@ class ChainArm:
         joints = self._as_joints(joints)
         axis_frames, origins, _, _ = self._joint_frames(joints)
         c = self._constants_like(joints)
-        prismatic = torch.tensor([kind == "prismatic" for kind in self.joint_types], device=joints.device)
-        slides = torch.where(prismatic, joints, torch.zeros_like(joints))  # a prismatic child sits at the slide
+        slides = torch.where(c["prismatic"], joints, torch.zeros_like(joints))  # a prismatic child sits at the slide
         batch = joints.shape[:-1]
         frames = torch.zeros(*batch, self.num_joints + 1, 4, 4, dtype=joints.dtype, device=joints.device)
         frames[..., 0, :3, :3] = torch.eye(3, dtype=joints.dtype, device=joints.device)
         frames[..., 1:, :3, :3] = axis_frames @ c["bases"].transpose(-1, -2)  # R_j = F_j P_j^T
         frames[..., 1:, :3, 3] = origins + axis_frames[..., :, 2] * slides[..., None]
         frames[..., :, 3, 3] = 1
-        parents = torch.tensor(self.link_frames, device=joints.device) + 1  # -1 (base) -> row 0
-        return frames[..., parents, :, :] @ c["link_offsets"]
+        return frames[..., c["link_parents"], :, :] @ c["link_offsets"]
 
     def jacobian(self, joints) -> torch.Tensor:
         """(..., J) -> the geometric Jacobian, (..., 3, J) for position targets, (..., 6, J) for poses.
@@ -400,7 +401,7 @@ class ChainArm:
         joints = self._as_joints(joints)
         axis_frames, origins, _, ee_position = self._joint_frames(joints)
         axes = axis_frames[..., :, 2]  # (..., J, 3) world axes: a joint's motion leaves its own axis alone
-        revolute = torch.tensor([kind != "prismatic" for kind in self.joint_types], device=joints.device)
+        revolute = ~self._constants_like(joints)["prismatic"]
         linear = torch.where(
             revolute[:, None], torch.linalg.cross(axes, ee_position.unsqueeze(-2) - origins, dim=-1), axes
         )  # (..., J, 3)

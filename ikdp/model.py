@@ -114,7 +114,10 @@ class IKDiffusion(nn.Module):
         if snr_gamma > 0:
             snr = (alpha / sigma).squeeze(-1) ** 2
             weight = snr.clamp(max=snr_gamma) / snr_gamma
-        predicted_joints = self.representation.decode(predicted_clean)
+        # past a limit, a clamped joint would give the FK term no gradient to bring it back
+        predicted_joints = self.representation.decode(
+            predicted_clean, clamp=not self.config.denoiser.kinematics_past_limits
+        )
         if arm.target_dim == 7:  # pose targets: the rotation must be consistent too, not only the position
             predicted_rotation, predicted_tip = arm.end_effector_frame(predicted_joints)
             true_rotation, _ = arm.end_effector_frame(joints)

@@ -30,7 +30,9 @@ def dls_step(jacobian: torch.Tensor, error: torch.Tensor, damping_squared: float
         solved = (trace_times_error - gram_times_error) / (a * d - b * b)[..., None]
     else:
         eye = torch.eye(gram.shape[-1], dtype=gram.dtype, device=gram.device)
-        solved = torch.linalg.solve(gram + damping_squared * eye, error[..., None])[..., 0]
+        # solve_ex: linalg.solve's LU without its error check, whose device-to-host sync breaks CUDA-graph
+        # capture; the damped Gram matrix is positive definite, so there is no singular case to report
+        solved = torch.linalg.solve_ex(gram + damping_squared * eye, error[..., None], check_errors=False)[0][..., 0]
     return (jacobian.transpose(-1, -2) @ solved[..., None])[..., 0]
 
 

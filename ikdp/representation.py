@@ -28,6 +28,7 @@ class AngleRepresentation:
                 raise ValueError(f"representation 'limits': expected joint limits of shape ({num_links}, 2), got {got}")
             self.lower = limits[:, 0].float().clone()
             self.half_range = ((limits[:, 1] - limits[:, 0]) / 2).float().clone()
+            self._limits_by_device: dict = {}
         self.kind = kind
         self.num_links = num_links
         self.dim = 2 * num_links if kind == "cossin" else num_links  # D, the diffused vector's size
@@ -37,20 +38,32 @@ class AngleRepresentation:
         if self.kind == "angle":
             return joints / math.pi
         if self.kind == "limits":
-            return (joints - self.lower.to(joints)) / self.half_range.to(joints) - 1
+            lower, half_range = self._limits_like(joints)
+            return (joints - lower) / half_range - 1
         return torch.stack((torch.cos(joints), torch.sin(joints)), dim=-1).flatten(-2)
 
-    def decode(self, x: torch.Tensor) -> torch.Tensor:
+    def decode(self, x: torch.Tensor, *, clamp: bool = True) -> torch.Tensor:
         """(..., D) -> (..., J) joint values: headings in (-pi, pi], limited joints within their limits.
 
-        Noisy vectors decode too (a limited joint is clamped into its range).
+        Noisy vectors decode too (a limited joint is clamped into its range, unless `clamp` is False:
+        then a value past a limit decodes to the joint value past it, which forward kinematics still
+        accepts and which keeps a gradient).
         """
         if self.kind == "angle":
             return wrap_angle(x * math.pi)
         if self.kind == "limits":
-            return (x.clamp(-1.0, 1.0) + 1) * self.half_range.to(x) + self.lower.to(x)
+            lower, half_range = self._limits_like(x)
+            return ((x.clamp(-1.0, 1.0) if clamp else x) + 1) * half_range + lower
         pairs = x.unflatten(-1, (self.num_links, 2))
         return torch.atan2(pairs[..., 1], pairs[..., 0])
+
+    def _limits_like(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(lower, half_range) on `like`'s device and dtype, copied there once: a copy per call would cost a
+        host-to-device transfer each step and break CUDA-graph capture."""
+        key = (like.device, like.dtype)
+        if key not in self._limits_by_device:
+            self._limits_by_device[key] = (self.lower.to(like), self.half_range.to(like))
+        return self._limits_by_device[key]
 
     def unit_vectors(self, x: torch.Tensor) -> torch.Tensor:
         """(..., D) -> (..., N, 2) unit direction of each bone, without an atan2 round trip."""

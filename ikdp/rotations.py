@@ -124,7 +124,8 @@ def quaternion_multiply(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 def quaternion_conjugate(quaternion: torch.Tensor) -> torch.Tensor:
     """The inverse of a unit quaternion: (w, -x, -y, -z)."""
-    return quaternion * quaternion.new_tensor([1.0, -1.0, -1.0, -1.0])
+    # no constant tensor: its host-to-device copy would break CUDA-graph capture
+    return torch.cat((quaternion[..., :1], -quaternion[..., 1:]), dim=-1)
 
 
 def quaternion_to_axis_angle(quaternion: torch.Tensor) -> torch.Tensor:

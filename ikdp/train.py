@@ -58,6 +58,7 @@ class TrainConfig:
     hidden: int = 128  # film: MLP width
     blocks: int = 3  # film: residual blocks
     kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
+    kinematics_past_limits: bool = False  # robots: FK features and loss at unclamped joint values (keeps a gradient)
     ema: float = 0.0  # decay of an exponential moving average of the weights, saved for solving (0: none)
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
     tip_loss_weight: float = 100.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
@@ -110,7 +111,11 @@ def build_model(config: TrainConfig) -> IKDiffusion:
         prediction=config.prediction,
         schedule=ScheduleConfig(timesteps=config.timesteps, kind=config.schedule),
         denoiser=DenoiserConfig(
-            kind=denoiser, hidden=config.hidden, blocks=config.blocks, kinematic_until=config.kinematic_until
+            kind=denoiser,
+            hidden=config.hidden,
+            blocks=config.blocks,
+            kinematic_until=config.kinematic_until,
+            kinematics_past_limits=config.kinematics_past_limits,
         ),
         arm=chain.to_config() if chain is not None else None,
     )

@@ -34,3 +34,24 @@ def test_replay_gives_the_eager_samples(sampler, steps):
         replayed = graphed(targets, seed=seed)
         torch.testing.assert_close(replayed.states, eager.states, atol=1e-5, rtol=0)
         torch.testing.assert_close(replayed.headings, eager.headings, atol=1e-5, rtol=0)
+
+
+@needs_cuda
+@pytest.mark.parametrize("name", ["ikdp_n4", "ikdp_panda"])
+def test_replay_is_bit_identical_to_the_eager_loop(name):
+    """The same kernels on the same inputs: not close, equal (a planar arm and a URDF chain)."""
+    solver = ikdp.load(name, device="cuda")
+    model = solver.model
+    graphed = CapturedReverseDiffusion(model, batch=1, num_samples=16, sampler="dpmpp2m", steps=10)
+    targets = solver.arm.end_effector(solver.arm.random_poses(1, generator=torch.Generator().manual_seed(3)))
+    targets = targets.to("cuda")
+    eager = model.sample(
+        targets,
+        num_samples=16,
+        sampler="dpmpp2m",
+        steps=10,
+        generator=torch.Generator("cuda").manual_seed(5),
+        return_trajectory=True,
+    )
+    replayed = graphed(targets, seed=5)
+    assert torch.equal(replayed.states, eager.states)

@@ -75,7 +75,7 @@ class ChainFiLMDenoiser(nn.Module):
 
     def features(self, x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """(M, D) noisy sample, (M, target_dim) target -> (M, F): x_t, the task error, the DLS step."""
-        joints = self.representation.decode(x)  # clamped into the limits
+        joints = self.representation.decode(x, clamp=not self.config.kinematics_past_limits)
         error = self.arm.task_error(joints, target)  # (M, E)
         step = dls_step(self.arm.jacobian(joints), error, self.damping_squared) / self.half_range  # in x units
         return torch.cat((x, error, step), dim=-1)

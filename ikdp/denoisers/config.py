@@ -13,6 +13,9 @@ class DenoiserConfig:
     hidden: int = 128  # film, mlp: width of the residual MLP
     blocks: int = 3  # film, mlp: residual blocks
     kinematic_until: int = 0  # film, chain_film: give the tip miss and DLS step only at t < this (0: at every t)
+    # chain_film: the kinematic features and the loss's FK term at joint values past a limit as they are (True),
+    # or clamped into the limits (False, the first Panda model's): a clamped joint gets no FK gradient
+    kinematics_past_limits: bool = False
     time_dim: int = 64  # size of the sinusoidal timestep embedding
     model_dim: int = 64  # paper: transformer token width
     heads: int = 4  # paper: attention heads
