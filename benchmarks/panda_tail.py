@@ -123,8 +123,11 @@ def study(path: str, targets_count: int, config: TailConfig) -> dict:
         by_step[int(run.timesteps[index])] = {
             "good_mm_median": float(estimate_error[~bad].median()) if (~bad).any() else math.nan,
             "bad_mm_median": float(estimate_error[bad].median()) if bad.any() else math.nan,
-            "bad_joints_near_limit": float(near_limits(arm, run.estimates[index][:, 0])[bad].mean()) if bad.any() else 0,
+            "bad_joints_near_limit": float(near_limits(arm, run.estimates[index][:, 0])[bad].mean())
+            if bad.any()
+            else 0.0,
         }
+    near = near_limits(arm, joints)
     unclamped = reverse(model, targets, seed=1, clamp_estimates=False).headings[:, 0]
     checked, draws = self_checked(model, arm, targets, joints, config)
     train = solver.metadata["train"]
@@ -132,7 +135,7 @@ def study(path: str, targets_count: int, config: TailConfig) -> dict:
         "checkpoint": path,
         "recipe": {k: train.get(k) for k in ("denoiser", "prediction", "schedule", "hidden", "blocks", "device")},
         "raw_ddpm_k1": summary(position, rotation),
-        "joints_near_limit": {"bad": float(near_limits(arm, joints)[bad].mean()), "good": float(near_limits(arm, joints)[~bad].mean())},
+        "joints_near_limit": {"bad": float(near[bad].mean()), "good": float(near[~bad].mean())},
         "estimate_error_by_timestep": by_step,
         "no_clamp_until_last_step": summary(*errors(arm, unclamped, targets)),
         "self_check": {**summary(*errors(arm, checked, targets)), "draws_per_target": draws},
@@ -142,8 +145,10 @@ def study(path: str, targets_count: int, config: TailConfig) -> dict:
 def main(config: TailConfig) -> dict:
     torch.set_num_threads(1)
     results = {"machine": machine_description(threads=1), "targets": config.targets, "rows": []}
-    print("| checkpoint | raw median / mean / p90 mm | rot median / mean deg | > 50 mm | near-limit joints bad / good "
-          "| no x̂0 clamp: mean mm | self-check: mean mm / deg, draws |")
+    print(
+        "| checkpoint | raw median / mean / p90 mm | rot median / mean deg | > 50 mm | near-limit joints bad / good "
+        "| no x̂0 clamp: mean mm | self-check: mean mm / deg, draws |"
+    )
     print("|---|---|---|---|---|---|---|")
     for path in config.checkpoints:
         row = study(path, config.targets, config)
@@ -154,7 +159,8 @@ def main(config: TailConfig) -> dict:
             f"{raw['position_mm_p90']:.1f} | {raw['rotation_deg_median']:.2f} / {raw['rotation_deg_mean']:.2f} "
             f"| {100 * raw['share_over_50mm']:.1f} % | {row['joints_near_limit']['bad']:.2f} / "
             f"{row['joints_near_limit']['good']:.2f} | {free['position_mm_mean']:.1f} | "
-            f"{checked['position_mm_mean']:.1f} / {checked['rotation_deg_mean']:.2f}, {checked['draws_per_target']:.2f} |",
+            f"{checked['position_mm_mean']:.1f} / {checked['rotation_deg_mean']:.2f}, "
+            f"{checked['draws_per_target']:.2f} |",
             flush=True,
         )
     config.output.parent.mkdir(parents=True, exist_ok=True)
