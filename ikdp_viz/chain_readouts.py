@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ikdp_viz.chain_scene import ChainView
@@ -55,7 +57,9 @@ def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
     numbers = {key: value for key, value in metrics.items() if isinstance(value, (int, float))}
     if numbers:
         lines.append("**at save** " + ", ".join(f"{key} {value:.4g}" for key, value in sorted(numbers.items())[:6]))
-    if arm.urdf_path is not None and arm.chain_description() is None:
-        # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show
-        lines.append(f"**No meshes**: {arm.urdf_path} is not here (`pip install example-robot-data`); skeletons only")
+    if arm.recorded_urdf_path is not None and arm.chain_description() is None:
+        # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show;
+        # by the file's name only, as the recorded path is the training machine's
+        name = Path(arm.recorded_urdf_path).name
+        lines.append(f"**No meshes**: no {name} here (`pip install example-robot-data`); skeletons only")
     return "  \n".join(lines)

@@ -164,7 +164,8 @@ def test_the_model_text_says_when_the_robots_meshes_are_not_here():
     assert "No meshes" not in chain_model_text(panda, 100, {})
     elsewhere = ikdp.ChainArm.from_config({**panda.to_config(), "urdf_path": "/gone/panda.urdf"})
     text = chain_model_text(elsewhere, 100, {})
-    assert "**No meshes**" in text and "/gone/panda.urdf" in text and "example-robot-data" in text
+    assert "**No meshes**" in text and "panda.urdf" in text and "example-robot-data" in text
+    assert "/gone" not in text  # never a path of the machine the model was trained on
 
 
 def test_an_arm_without_meshes_draws_none_and_a_bad_choice_is_refused():
