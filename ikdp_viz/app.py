@@ -79,6 +79,8 @@ class VizApp:
         given = Path(solver.metadata.get("path", "model.pt"))
         self.checkpoints = dict(checkpoints or {given.name: given})  # dropdown label -> path
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
+        self._export_lock = threading.Lock()  # one export renders at a time
+        self._export_notes: dict[int, viser.NotificationHandle] = {}  # client id -> its export's notification
         self.panel = build_panel(
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
@@ -238,8 +240,11 @@ class VizApp:
             self.writer.flush()
         return joints
 
-    def export(self, folder: Path) -> tuple[Path, Path]:
-        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`."""
+    def export(self, folder: Path, progress=None) -> tuple[Path, Path]:
+        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`.
+
+        `progress(done, total)` is called after each GIF frame (export.write_gif).
+        """
         from ikdp_viz.export import write_gif, write_trail_png
 
         done: list = []
@@ -253,19 +258,44 @@ class VizApp:
         x, y = solved.view.target
         stem = f"ikdp_{solved.request.sampler}_K{solved.view.num_samples}_seed{solved.request.seed}_{x:+.3f}_{y:+.3f}"
         seconds = float(self.panel.duration.value) or 4.0
-        gif = write_gif(solved.view, Path(folder) / f"{stem}.gif", highlight, seconds=seconds)
+        gif = write_gif(solved.view, Path(folder) / f"{stem}.gif", highlight, seconds=seconds, progress=progress)
         png = write_trail_png(solved.view, Path(folder) / f"{stem}_trail.png", highlight)
         return gif, png
 
     def _on_export(self, event: viser.GuiEvent) -> None:
-        """Export into a temporary folder and send both files to the tab that asked."""
+        """Export into a temporary folder and save both files in the downloads of the tab that asked.
+
+        The tab sees one notification per export, replacing its last one: the GIF's frames as they
+        render, then the two names. The files are saved at once (viser's `save_immediately`): without
+        it viser shows a link per file to click, and the links pile up (issue 19).
+        """
         import tempfile
 
-        if event.client is None or self.solved is None:
+        client = event.client
+        if client is None:
             return
-        with tempfile.TemporaryDirectory() as folder:
-            for path in self.export(Path(folder)):
-                event.client.send_file_download(path.name, path.read_bytes())
+        previous = self._export_notes.pop(client.client_id, None)
+        if previous is not None:  # popped, so never removed twice
+            previous.remove()
+        note = client.add_notification("Export", "starting", loading=True, with_close_button=False)
+        self._export_notes[client.client_id] = note
+        if not self._export_lock.acquire(blocking=False):
+            note.title, note.body, note.loading = "Export", "another export is rendering; try again", False
+            note.with_close_button, note.auto_close_seconds = True, 5.0
+            return
+        try:
+            progress = lambda done, total: setattr(note, "body", f"rendering the GIF: frame {done} of {total}")
+            with tempfile.TemporaryDirectory() as folder:
+                paths = self.export(Path(folder), progress=progress)
+                note.body = "sending the files"
+                for path in paths:
+                    client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
+            note.title, note.body = "Exported to your downloads", " and ".join(path.name for path in paths)
+        except ValueError as error:
+            note.title, note.body, note.color = "Export failed", str(error), "red"
+        finally:
+            self._export_lock.release()
+        note.loading, note.with_close_button, note.auto_close_seconds = False, True, 8.0
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))

@@ -231,6 +231,22 @@ def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_pa
     assert f"seed{app.solved.request.seed}" in gif.name and png.name.endswith("_trail.png")
 
 
+def test_each_gif_frame_says_its_t_and_progress_is_reported_per_frame(app, tmp_path):
+    import imageio.v2 as imageio
+
+    calls: list[tuple[int, int]] = []
+    gif, _ = app.export(tmp_path, progress=lambda done, total: calls.append((done, total)))
+    frames = imageio.mimread(gif)
+    assert calls == [(done, len(frames)) for done in range(1, len(frames) + 1)]
+    corner = [np.asarray(frame)[:40, :100, :3] for frame in frames]  # top left, outside the workspace's circle
+    assert all((box.max(axis=-1) < 100).sum() > 20 for box in corner)  # dark text on every frame
+    assert not np.array_equal(corner[0], corner[-1])  # t = T first, t = 0 last: different labels
+    from ikdp_viz.export import time_label
+
+    view = app.solved.view
+    assert time_label(view, 0) == f"t = {app.solver.timesteps}" and time_label(view, view.num_states - 1) == "t = 0"
+
+
 def test_a_fixed_seed_repeats_the_solve_and_new_seed_each_move_changes_it(app):
     drag_gizmo(app, 0.5, 1.5)
     settle(app)
