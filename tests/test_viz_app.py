@@ -17,6 +17,7 @@ from viz_helpers import drag_gizmo, running_app, settle
 import ikdp
 from ikdp.train import TrainConfig, train
 from ikdp_viz.app import list_checkpoints
+from ikdp_viz.scene import HIGHLIGHT_LIFT
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.solving import SolveRequest, solve
 
@@ -229,6 +230,18 @@ def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_pa
     centre = (np.array([cols.mean(), rows.mean()]) - 400) / 400 * 1.05 * reach * np.array([1, -1])
     assert np.allclose(centre, view.target, atol=0.1 * reach)  # the cross where the target is
     assert f"seed{app.solved.request.seed}" in gif.name and png.name.endswith("_trail.png")
+
+
+def test_the_cross_lies_on_the_cameras_ray_through_the_target_above_every_arm(app):
+    for point in [(0.3, 1.1), (10.0, -10.0)]:  # inside, and clamped to the boundary
+        app.move_target(point)
+        settle(app)
+        ground = np.array([*app.target, 0.0])
+        camera = np.asarray(app.server.initial_camera.position)
+        cross = np.asarray(app.cross.position)
+        assert np.linalg.norm(np.cross(cross - ground, camera - ground)) < 1e-9  # the same pixel as the target
+        sizes = app.writer.sizes
+        assert cross[2] - 0.05 * sizes.cross > HIGHLIGHT_LIFT * sizes.joint + sizes.tip  # over the highlighted tip
 
 
 def test_each_gif_frame_says_its_t_and_progress_is_reported_per_frame(app, tmp_path):
