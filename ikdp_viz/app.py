@@ -23,6 +23,7 @@ import numpy as np
 import viser
 
 import ikdp
+from ikdp.checkpoint import read_checkpoint
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene_writer import ChainSceneWriter
@@ -59,6 +60,16 @@ def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]
     return found
 
 
+def checkpoint_arm_kind(path: Path) -> str | None:
+    """The kind of arm ("planar", "chain") a checkpoint file's model drives; None if ikdp cannot read the file."""
+    try:
+        payload = read_checkpoint(path)
+    except ikdp.CheckpointError:
+        return None
+    arm = payload["model"].get("arm")  # absent or None: a planar arm described by its `lengths`
+    return str(arm.get("kind", "planar")) if isinstance(arm, dict) else "planar"
+
+
 class VizApp:
     """The scene and panel of one viser server; every browser tab sees the same."""
 
@@ -77,14 +88,18 @@ class VizApp:
         self.session = Session(solver, target)
         self.checkpoint_folder = checkpoint_folder
         given = Path(solver.metadata.get("path", "model.pt"))
-        self.checkpoints = dict(checkpoints or {given.name: given})  # dropdown label -> path
+        self._checkpoint_kinds: dict[tuple[Path, float, int], str | None] = {}  # (path, mtime, size) -> arm kind
+        # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
+        # planar session could not open)
+        self.checkpoints = self._openable(dict(checkpoints or {given.name: given}), solver)
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
         self._export_lock = threading.Lock()  # one export renders at a time
         self._export_notes: dict[int, viser.NotificationHandle] = {}  # client id -> its export's notification
+        current = self._current_checkpoint_label()  # first: it lists the open model when the folder lacks it
         self.panel = build_panel(
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
-            checkpoint_label=self._current_checkpoint_label(), model_text=self._model_description(),
+            checkpoint_label=current, model_text=self._model_description(),
         )  # fmt: skip
         writer_class = SCENE_WRITERS[arm_kind(solver).name]
         self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
@@ -335,10 +350,26 @@ class VizApp:
         if self.checkpoint_folder is None:
             return
         current = self._current_checkpoint_label()
-        found = list_checkpoints(self.checkpoint_folder)
+        found = self._openable(list_checkpoints(self.checkpoint_folder), self.solver)
         found.setdefault(current, self.checkpoints[current])
         self.checkpoints = found
         self.panel.checkpoint.options = tuple(found)
+
+    def _openable(self, checkpoints: dict[str, Path], solver: ikdp.Solver) -> dict[str, Path]:
+        """The entries of `checkpoints` whose model drives `solver`'s kind of arm; each file read once per version."""
+        wanted = arm_kind(solver).name
+        kept = {}
+        for label, path in checkpoints.items():
+            try:
+                stat = Path(path).stat()
+            except OSError:
+                continue
+            key = (Path(path), stat.st_mtime, stat.st_size)
+            if key not in self._checkpoint_kinds:
+                self._checkpoint_kinds[key] = checkpoint_arm_kind(Path(path))
+            if self._checkpoint_kinds[key] == wanted:
+                kept[label] = path
+        return kept
 
     def _on_checkpoint(self) -> None:
         label = self.panel.checkpoint.value

@@ -367,6 +367,35 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     assert "Could not load" in app.panel.model_text.content and "junk.pt" in app.panel.model_text.content
 
 
+def test_the_dropdown_offers_only_models_of_the_arm_this_viewer_draws(
+    solver, tiny_checkpoint, two_link_checkpoint, tiny_chain_checkpoint, tmp_path
+):
+    import shutil
+
+    from ikdp_viz.app import checkpoint_arm_kind
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for name, source in (("planar3.pt", tiny_checkpoint), ("planar2.pt", two_link_checkpoint)):
+        shutil.copy(source, folder / name)
+    shutil.copy(tiny_chain_checkpoint, folder / "robot.pt")
+    (folder / "junk.pt").write_text("not a checkpoint")
+    assert [checkpoint_arm_kind(folder / name) for name in ("planar3.pt", "robot.pt", "junk.pt")] == [
+        "planar", "chain", None
+    ]  # fmt: skip
+    with running_app(solver, solve_now=False, checkpoints=list_checkpoints(folder), checkpoint_folder=folder) as app:
+        assert set(app.panel.checkpoint.options) == {"planar2.pt", "planar3.pt", str(tiny_checkpoint)}
+        shutil.copy(tiny_chain_checkpoint, folder / "robot2.pt")  # trained while the viewer runs
+        shutil.copy(two_link_checkpoint, folder / "planar4.pt")
+        app.refresh_checkpoints()
+        assert set(app.panel.checkpoint.options) == {"planar2.pt", "planar3.pt", "planar4.pt", str(tiny_checkpoint)}
+    chain_solver = ikdp.load(tiny_chain_checkpoint)
+    with running_app(
+        chain_solver, solve_now=False, checkpoints=list_checkpoints(folder), checkpoint_folder=folder
+    ) as app:
+        assert set(app.panel.checkpoint.options) == {"robot.pt", "robot2.pt", str(tiny_chain_checkpoint)}
+
+
 def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):
     (tmp_path / "b.pt").write_bytes(b"")
     (tmp_path / "a.pt").write_bytes(b"")
