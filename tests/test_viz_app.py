@@ -396,6 +396,21 @@ def test_the_dropdown_offers_only_models_of_the_arm_this_viewer_draws(
         assert set(app.panel.checkpoint.options) == {"robot.pt", "robot2.pt", str(tiny_chain_checkpoint)}
 
 
+def test_one_joint_on_both_axes_moves_the_other_dropdown_on(app):
+    controls = app.panel.joint_space
+    controls.show.value = True  # drawn before the next line: the writer offers the arm's three joints
+    assert controls.first.options == ("θ1", "θ2", "θ3") and controls.joints() == (0, 1)
+    controls.second.value = "θ3"
+    controls.first.value = "θ3"  # the same joint as the y axis: the y axis moves on, in the panel
+    assert (controls.first.value, controls.second.value) == ("θ3", "θ1") and controls.joints() == (2, 0)
+    controls.second.value = "θ3"
+    assert (controls.first.value, controls.second.value) == ("θ1", "θ3") and controls.joints() == (0, 2)
+    app.writer.flush()
+    labels = [label.text for label in app.writer.joint_space.labels[:2]]
+    assert labels == ["θ1", "θ3"]  # the square's axes say what the dropdowns say
+    controls.show.value = False
+
+
 def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):
     (tmp_path / "b.pt").write_bytes(b"")
     (tmp_path / "a.pt").write_bytes(b"")
