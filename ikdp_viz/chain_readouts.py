@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -54,12 +55,36 @@ def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
         f"**T** = {num_timesteps}",
         f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation {model.get('representation', '?')}",
     ]
-    numbers = {key: value for key, value in metrics.items() if isinstance(value, (int, float))}
-    if numbers:
-        lines.append("**at save** " + ", ".join(f"{key} {value:.4g}" for key, value in sorted(numbers.items())[:6]))
+    if metrics:
+        lines.append(saved_metrics_text(metrics))
     if arm.recorded_urdf_path is not None and arm.chain_description() is None:
         # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show;
         # by the file's name only, as the recorded path is the training machine's
         name = Path(arm.recorded_urdf_path).name
         lines.append(f"**No meshes**: no {name} here (`pip install example-robot-data`); skeletons only")
     return "  \n".join(lines)
+
+
+def saved_metrics_text(metrics: dict) -> str:
+    """The accuracy a chain checkpoint measured when it was saved, in words with units (mm, degrees), not raw keys."""
+    numbers = {key: float(value) for key, value in metrics.items() if isinstance(value, (int, float))}
+    statistics = (("median", "median"), ("mean", "mean"), ("95th percentile", "p95"))
+    position = [f"{name} {1000 * numbers[f'tip_error_{key}']:.1f} mm" for name, key in statistics
+                if f"tip_error_{key}" in numbers]  # fmt: skip
+    rotation = [f"{name} {math.degrees(numbers[f'rotation_error_{key}']):.1f}°" for name, key in statistics
+                if f"rotation_error_{key}" in numbers]  # fmt: skip
+    parts = []
+    if position:
+        parts.append("hand position error " + ", ".join(position))
+    if rotation:
+        parts.append("rotation error " + ", ".join(rotation))
+    if "limit_violations" in numbers:
+        parts.append(f"{numbers['limit_violations']:g} joint-limit violations")
+    how = []
+    if "step" in numbers:
+        how.append(f"{numbers['step']:,.0f} training steps")
+    if "eval_targets" in numbers:
+        how.append(f"{numbers['eval_targets']:g} targets")
+    if isinstance(metrics.get("sampler"), str):
+        how.append(metrics["sampler"])
+    return "**at save**" + (f" ({', '.join(how)})" if how else "") + ": " + "; ".join(parts)

@@ -67,7 +67,7 @@ def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> s
     if "tip_error_median" in metrics:
         lines.append(
             f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
-            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} ({metrics.get('sampler', '')})"
+            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} bone lengths ({metrics.get('sampler', '')})"
         )
     return "  \n".join(lines)
 

@@ -26,7 +26,7 @@ import viser
 import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
-from ikdp_viz.panel import Panel, highlight_index, plot_scales
+from ikdp_viz.panel import Panel, highlight_index, plot_axes, plot_scales
 from ikdp_viz.scene import (
     ARM_LIFT,
     HIGHLIGHT_LIFT,
@@ -170,6 +170,9 @@ class Animation:
 class SceneWriter:
     """Owns the scene nodes, the solve on screen and the animation; applies posted messages on its own thread."""
 
+    CHART_ERROR, CHART_UNIT = "tip error", "bone lengths"  # what the chart's y axis shows, in what unit
+    CHART_SCALE = 1.0  # view.tip_error times this is in that unit
+
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.server, self.panel = server, panel
         self.solver = solver  # the model whose scene is drawn
@@ -309,7 +312,10 @@ class SceneWriter:
             self.prior_lines = None
         self._recolor()
         self._ensure_arm_nodes()
-        self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
+        decades = readouts.error_range(solved.view.tip_error * self.CHART_SCALE)
+        self.panel.plot.scales = plot_scales(self.solver.timesteps, *decades)
+        self.panel.plot.axes = plot_axes(*decades, self.CHART_UNIT)
+        self.panel.plot.title = f"{self.CHART_ERROR} against t"
         self._write_refined()
         last = solved.view.num_states - 1
         released = self._replay_target is not None and np.array_equal(solved.request.target, self._replay_target)
@@ -445,7 +451,7 @@ class SceneWriter:
         """The slider, the chart's dot and the readouts at the state on screen; `now` is when (time.monotonic())."""
         view, highlight = self.solved.view, self.highlight_index()
         self.panel.timestep.value = int(view.labels[self.state])  # the app ignores slider updates with no client
-        self.panel.plot.data = error_curves(view, highlight, self.state)
+        self.panel.plot.data = error_curves(view, highlight, self.state, scale=self.CHART_SCALE)
         self._write_readouts()
         self._panel_written = now
 

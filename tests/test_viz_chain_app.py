@@ -104,6 +104,19 @@ def test_refine_shows_the_polished_error_in_millimetres_and_degrees(app):
     assert not app.writer.refined_lines.visible  # the polish belongs to the final pose
 
 
+def test_the_chart_plots_the_hand_error_in_millimetres_and_says_so(app):
+    view, highlight = app.solved.view, app.highlight_index()
+    t, median, chosen, _ = app.panel.plot.data
+    order = np.argsort(view.labels, kind="stable")
+    np.testing.assert_allclose(chosen, np.log10(np.maximum(1000 * view.position_error[order, highlight], 1e-6)))
+    low, high = app.panel.plot.scales["y"]["range"]
+    assert 10**low <= 1000 * view.position_error.min() + 1e-9 and 1000 * view.position_error.max() <= 10**high
+    x_axis, y_axis = app.panel.plot.axes
+    assert y_axis["label"] == "mm, log scale" and "t" in x_axis["label"]
+    assert [float(value) for value in y_axis["values"]] == [10.0**exponent for exponent in y_axis["splits"]]
+    assert app.panel.plot.title == "hand position error against t"
+
+
 def test_the_prior_and_a_planar_checkpoint_are_handled(app, tiny_checkpoint):
     joints = app.draw_prior()
     assert joints.shape == (K, app.solver.arm.num_joints + 1, 3) and app.writer.prior_lines is not None

@@ -159,6 +159,19 @@ def test_the_own_hull_is_scipys_hull_and_the_ghosts_need_no_scipy(monkeypatch):
         assert trimesh.Trimesh(vertices, faces).is_watertight
 
 
+def test_the_saved_metrics_are_words_with_units_not_keys():
+    metrics = {"eval_targets": 200, "tip_error_median": 0.0112, "tip_error_mean": 0.032, "tip_error_p95": 0.139,
+               "sampler": "ddpm raw, K=1", "rotation_error_median": 0.0416, "rotation_error_mean": 0.2396,
+               "limit_violations": 0, "step": 10000}  # fmt: skip
+    text = chain_model_text(load_robot("panda"), 100, {"metrics": metrics})
+    assert "**at save** (10,000 training steps, 200 targets, ddpm raw, K=1): " in text
+    assert "hand position error median 11.2 mm, mean 32.0 mm, 95th percentile 139.0 mm" in text
+    assert "rotation error median 2.4°, mean 13.7°; 0 joint-limit violations" in text
+    assert "_" not in text.split("**at save**")[1]  # no raw key
+    position_only = chain_model_text(load_robot("panda"), 100, {"metrics": {"tip_error_median": 0.002}})
+    assert position_only.endswith("**at save**: hand position error median 2.0 mm")
+
+
 def test_the_model_text_says_when_the_robots_meshes_are_not_here():
     panda = load_robot("panda")
     assert "No meshes" not in chain_model_text(panda, 100, {})

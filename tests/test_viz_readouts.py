@@ -36,7 +36,7 @@ def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
     text = model_text(4, (1.0, 1.0, 1.0, 1.0), 80, metadata)
     assert "**N** = 4 links (lengths 1, 1, 1, 1), **T** = 80" in text
     assert "**denoiser** film, representation cossin, schedule linear" in text
-    assert "10000 steps: median tip error 0.0267, p95 0.0480" in text
+    assert "10000 steps: median tip error 0.0267, p95 0.0480 bone lengths" in text
     assert "trained" not in model_text(2, (1.0, 0.5), 20, {})
 
 
