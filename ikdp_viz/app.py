@@ -103,7 +103,10 @@ class VizApp:
         )  # fmt: skip
         writer_class = SCENE_WRITERS[arm_kind(solver).name]
         self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
+        self._chosen_steps = int(self.panel.steps.value)  # the steps a sampler that can skip some takes
+        self._showing_steps = False  # _show_steps is moving the slider
         self._wire_panel()
+        self._show_steps()
         server.on_client_connect(lambda client: self.refresh_checkpoints())
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
         if solve_now:
@@ -230,8 +233,8 @@ class VizApp:
         panel.export_button.on_click(self._on_export)
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
-        for handle in (panel.steps, panel.refine_steps):
-            handle.on_update(lambda _: self.request_solve())
+        panel.steps.on_update(lambda _: self._on_steps())
+        panel.refine_steps.on_update(lambda _: self.request_solve())
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
         panel.refine.on_update(lambda _: self._on_refine())
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
@@ -324,8 +327,34 @@ class VizApp:
         self.request_solve()
 
     def _on_sampler(self) -> None:
-        self.panel.steps.disabled = not SAMPLERS[str(self.panel.sampler.value)].supports_steps
+        self._show_steps()
         self.request_solve()
+
+    def _on_steps(self) -> None:
+        steps = self.panel.steps
+        if self._showing_steps or (steps.disabled and int(steps.value) == steps.max):
+            return  # _show_steps, or the writer fitting the slider to a new model's T: no one's choice
+        self._chosen_steps = int(steps.value)  # a script's or the command line's, for when a sampler can skip
+        if steps.disabled:
+            self._show_steps()  # this sampler takes all T: that is what the slider says
+        else:
+            self.request_solve()
+
+    def _show_steps(self) -> None:
+        """The steps slider: the user's choice for a sampler that can skip steps; else disabled at T, the steps
+        it does take (issue 19: DDPM showed a stale number). The user's choice comes back with such a sampler."""
+        steps = self.panel.steps
+        takes_all = not SAMPLERS[str(self.panel.sampler.value)].supports_steps
+        if takes_all and not steps.disabled:
+            self._chosen_steps = int(steps.value)
+        steps.disabled = takes_all
+        shown = steps.max if takes_all else min(self._chosen_steps, steps.max)
+        if steps.value != shown:
+            self._showing_steps = True  # not a user's change: no solve of its own
+            try:
+                steps.value = shown
+            finally:
+                self._showing_steps = False
 
     def _on_refine(self) -> None:
         self.panel.refine_steps.disabled = not self.panel.refine.value
@@ -392,10 +421,15 @@ class VizApp:
             self.panel.checkpoint.value = self._current_checkpoint_label()
             return False
         with self.session.lock:
+            previous = self.session.target
             self.session.solver = solver
-            self.session.target = initial_target(solver, self.session.target)
+            self.session.target = initial_target(solver, previous)
             self.writer.post(NewModel(solver, self.session.target))
             self.panel.model_text.content = self._model_description()
             self.panel.checkpoint.value = self._current_checkpoint_label()
-            self.move_target(self.session.target)
+            self.panel.steps.max = solver.timesteps  # here too, not only on the writer's thread: _show_steps reads it
+            self._show_steps()  # the new model's T, when its sampler takes all steps
+            # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
+            same_kind_of_target = np.shape(previous) == np.shape(self.session.target)
+            self.move_target(previous if same_kind_of_target else self.session.target)
         return True

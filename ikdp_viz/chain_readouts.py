@@ -24,12 +24,24 @@ def error_pair(position_m: float, rotation_rad: float) -> str:
     return f"{1000 * position_m:.1f} mm / {np.degrees(rotation_rad):.2f}°"
 
 
+def best_note(view: ChainView, highlight: int) -> str:
+    """ ", the best by ..." when `highlight` is the best sample (ChainView.best_sample: position + 0.1 m per radian);
+    with refinement, the sample whose raw pose ranks first too when it is another one (issue 19)."""
+    if highlight != view.best_sample():
+        return ""
+    if not view.refined:
+        return ", the best by hand error at t = 0"
+    raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1]))
+    raw = "" if raw_best == highlight else f"; by raw hand error at t = 0, sample {raw_best + 1}"
+    return f", the best by refined hand error{raw}"
+
+
 def chain_solve_text(
     view: ChainView, state: int, highlight: int, *, sampler: str, seed: int, refine_steps: int, solve_seconds: float
 ) -> str:
     """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve."""
     last = view.num_states - 1
-    best = ", the best" if highlight == view.best_sample() else ""
+    best = best_note(view, highlight)
     lines = [
         f"**Step** {state} of {last} (t = {int(view.labels[state])})",
         f"**Hand error**, sample {highlight + 1} of {view.num_samples}{best}: "

@@ -367,6 +367,34 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     assert "Could not load" in app.panel.model_text.content and "junk.pt" in app.panel.model_text.content
 
 
+def test_steps_shows_t_while_ddpm_takes_all_and_the_choice_comes_back(app, solver):
+    steps = app.panel.steps
+    assert app.panel.sampler.value == "ddpm" and steps.disabled and steps.value == solver.timesteps
+    app.panel.sampler.value = "ddim"
+    settle(app)
+    assert not steps.disabled and steps.value == 20 and app.solved.request.steps == 20
+    steps.value = 7
+    settle(app)
+    assert app.solved.request.steps == 7 and app.solved.view.num_states == 8
+    app.panel.sampler.value = "ddpm"
+    settle(app)
+    assert steps.disabled and steps.value == solver.timesteps and app.solved.view.num_states == solver.timesteps + 1
+    app.panel.sampler.value = "dpmpp2m"
+    settle(app)
+    assert not steps.disabled and steps.value == 7 and app.solved.request.steps == 7
+
+
+def test_a_new_model_clamps_the_old_target_and_says_so(app, two_link_checkpoint):
+    app.move_target((0.0, 2.8))  # inside the three-link arm's reach of 3, outside the two-link arm's 2
+    settle(app)
+    assert "Clamped" not in app.panel.target_text.content
+    assert app.load_checkpoint(Path(two_link_checkpoint))
+    settle(app)
+    np.testing.assert_allclose(app.target, [0.0, 2.0], atol=1e-12)
+    assert "Clamped to the workspace boundary* (r = 2.00)" in app.panel.target_text.content
+    assert app.panel.steps.disabled and app.panel.steps.value == 12  # DDPM on the new model: all its T = 12 steps
+
+
 def test_the_dropdown_offers_only_models_of_the_arm_this_viewer_draws(
     solver, tiny_checkpoint, two_link_checkpoint, tiny_chain_checkpoint, tmp_path
 ):
