@@ -105,7 +105,7 @@ def robot(timeout: float = 120.0) -> None:
 
     scipy = "installed" if importlib.util.find_spec("scipy") else "not installed"
     with contextlib.redirect_stdout(io.StringIO()):
-        server = viser.ViserServer(host="127.0.0.1", port=8090, verbose=False)
+        server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # any free port
     app = VizApp(server, ikdp.load("ikdp_panda"))
     try:
         check(app.wait_until_still(timeout), "the Panda's first solve finished")
