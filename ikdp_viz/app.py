@@ -308,7 +308,9 @@ class VizApp:
                 note.body = "sending the files"
                 for path in paths:
                     client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
-            note.title, note.body = "Exported to your downloads", " and ".join(path.name for path in paths)
+            # a zero-width space after each "_" lets the long names wrap instead of being cut off with "..."
+            names = [path.name.replace("_", "_\u200b") for path in paths]
+            note.title, note.body = "Exported to your downloads", " and ".join(names)
         except ValueError as error:
             note.title, note.body, note.color = "Export failed", str(error), "red"
         finally:

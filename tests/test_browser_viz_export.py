@@ -46,9 +46,13 @@ def test_export_saves_both_files_in_the_tab_that_asked_with_progress_and_no_pile
         deadline = time.monotonic() + BROWSER_TIMEOUT
         while not any("Exported" in text for text in notification_texts(page)) and time.monotonic() < deadline:
             time.sleep(0.05)
-        texts = notification_texts(page)
+        texts = [text.replace("\u200b", "") for text in notification_texts(page)]  # the names' wrap points
         ours = [text for text in texts if "Export" in text]
         assert len(ours) == 1 and names[2] in ours[0] and names[3] in ours[0], texts  # one, naming both files
+        truncated = page.locator(".mantine-Notification-description").evaluate_all(
+            "nodes => nodes.filter(n => n.scrollWidth > n.clientWidth + 1).length"
+        )
+        assert truncated == 0  # the names wrap, none is cut off
         assert not page.locator(".mantine-Notification-root a[download]").count()  # no links to click
         assert not other.locator(".mantine-Notification-root").filter(has_text="Export").count()
         assert not any("pageerror" in error for error in errors), errors
