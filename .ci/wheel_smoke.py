@@ -2,6 +2,7 @@
 
     python wheel_smoke.py core   # the wheel without extras: load the shipped model by name, solve one target
     python wheel_smoke.py viz    # with the [viz] extra: start the viewer on its default model, fetch its page
+    python wheel_smoke.py robot  # with [viz,robots]: the viewer on the shipped Panda, its meshes drawn, a first solve
 
 Each check prints one line; any failure exits non-zero with the reason.
 """
@@ -87,8 +88,43 @@ def viz(timeout: float = 180.0) -> None:
     check(viewer.returncode in (0, 130, -signal.SIGINT), f"the viewer stopped on Ctrl-C (exit {viewer.returncode})")
 
 
+def robot(timeout: float = 120.0) -> None:
+    """The README's robot view (`python -m ikdp_viz --ckpt ikdp_panda`) with only [viz,robots] installed.
+
+    In this process, so that the scene can be read: a dependency that no extra lists fails here
+    (issue 19: trimesh's hull needed scipy, which only [test] brought, and the Panda drew nothing).
+    """
+    installed_not_cloned()
+    import contextlib
+    import io
+
+    import viser
+
+    import ikdp
+    from ikdp_viz.app import VizApp
+
+    scipy = "installed" if importlib.util.find_spec("scipy") else "not installed"
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # any free port
+    app = VizApp(server, ikdp.load("ikdp_panda"))
+    try:
+        check(app.wait_until_still(timeout), "the Panda's first solve finished")
+        writer = app.writer
+        check(writer.error is None and app.solved is not None, "the Panda's first solve is on screen, no error")
+        check(
+            writer.nodes_shape is not None and len(writer.ghosts) == len(writer.robot_meshes) > 0,
+            f"its {len(writer.robot_meshes)} link meshes and their ghosts were drawn (scipy {scipy})",
+        )
+        url = f"http://127.0.0.1:{server.get_port()}"
+        with urllib.request.urlopen(url, timeout=60) as response:
+            check(response.status == 200, f"GET {url} serves the viewer's page")
+    finally:
+        app.close()
+        server.stop()
+
+
 if __name__ == "__main__":
-    checks = {"core": core, "viz": viz}
+    checks = {"core": core, "viz": viz, "robot": robot}
     if len(sys.argv) != 2 or sys.argv[1] not in checks:
         raise SystemExit(f"usage: python {Path(__file__).name} {{{'|'.join(checks)}}}")
     checks[sys.argv[1]]()

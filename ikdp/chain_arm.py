@@ -13,7 +13,8 @@ plus for poses the rotation error as an axis-angle vector log(R_target R_current
 frame; `jacobian` is the matching geometric Jacobian (linear rows, then angular rows).
 
 `to_config()` holds only numbers, strings and lists, so a checkpoint loaded with
-`weights_only=True` rebuilds the arm without the URDF file; `urdf_path` is kept as information.
+`weights_only=True` rebuilds the arm without the URDF file. The path it records is the training
+machine's; `urdf_path` answers with the file on this machine (`recorded_urdf_path` keeps the other).
 """
 
 from __future__ import annotations
@@ -116,7 +117,9 @@ class ChainArm:
         self.joint_names = [str(name) for name in joint_names]
         self.joint_types = [str(kind) for kind in joint_types]
         self.base_link, self.ee_link = str(base_link), str(ee_link)
-        self.urdf_path = None if urdf_path is None else str(urdf_path)
+        # as recorded where the arm was built: in a checkpoint, a path of the machine it was trained on
+        self.recorded_urdf_path = None if urdf_path is None else str(urdf_path)
+        self._urdf_here: tuple[Path | None] | None = None  # (installed_copy's answer,) once asked
         self.target = target
         self.target_dim = 3 if target == "position" else 7  # position, or position + quaternion (w, x, y, z)
         self.condition_dim = 3 if target == "position" else 9  # position / span, plus two rotation columns
@@ -200,7 +203,7 @@ class ChainArm:
             "link_offsets": self._link_offsets.tolist(),
             "base_link": self.base_link,
             "ee_link": self.ee_link,
-            "urdf_path": self.urdf_path,
+            "urdf_path": self.recorded_urdf_path,
             "target": self.target,
         }
 
@@ -219,10 +222,19 @@ class ChainArm:
         (the shipped robots') is found again in this environment's install of it.
         """
         if self.description is None and self.urdf_path is not None:
-            found = installed_copy(self.urdf_path)
-            if found is not None:
-                self.description = read_chain(found, self.ee_link, base_link=self.base_link)
+            self.description = read_chain(self.urdf_path, self.ee_link, base_link=self.base_link)
         return self.description
+
+    @property
+    def urdf_path(self) -> str | None:
+        """The URDF file on this machine: the recorded path if it is here, else example-robot-data's installed
+        copy of the file it names; None when neither is here (never a path of the machine it was trained on)."""
+        if self.recorded_urdf_path is None:
+            return None
+        if self._urdf_here is None:
+            self._urdf_here = (installed_copy(self.recorded_urdf_path),)
+        found = self._urdf_here[0]
+        return None if found is None else str(found)
 
     def __repr__(self) -> str:
         return f"ChainArm({self.base_link!r} -> {self.ee_link!r}, {self.num_joints} joints, target={self.target!r})"

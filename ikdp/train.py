@@ -446,6 +446,8 @@ def parse_config(argv: list[str] | None = None) -> TrainConfig:
 
 def main(argv: list[str] | None = None) -> None:
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill saves a checkpoint as Ctrl-C does
+    # Started with SIGINT ignored (`nohup ... &`, a CI runner), Python installs no Ctrl-C handler: install it
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         train(parse_config(argv))
     except (ValueError, CheckpointError) as error:

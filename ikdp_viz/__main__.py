@@ -127,6 +127,8 @@ def main(argv: list[str] | None = None) -> None:
     check_address(config.host, config.port)
     check_settings(config)
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops as cleanly as Ctrl-C
+    # Started with SIGINT ignored (`nohup ... &`, a CI runner), Python installs no Ctrl-C handler: install it
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     server = app = None
     try:
         path = checkpoint_path(config.ckpt)

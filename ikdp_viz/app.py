@@ -23,6 +23,7 @@ import numpy as np
 import viser
 
 import ikdp
+from ikdp.checkpoint import read_checkpoint
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene_writer import ChainSceneWriter
@@ -59,6 +60,16 @@ def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]
     return found
 
 
+def checkpoint_arm_kind(path: Path) -> str | None:
+    """The kind of arm ("planar", "chain") a checkpoint file's model drives; None if ikdp cannot read the file."""
+    try:
+        payload = read_checkpoint(path)
+    except ikdp.CheckpointError:
+        return None
+    arm = payload["model"].get("arm")  # absent or None: a planar arm described by its `lengths`
+    return str(arm.get("kind", "planar")) if isinstance(arm, dict) else "planar"
+
+
 class VizApp:
     """The scene and panel of one viser server; every browser tab sees the same."""
 
@@ -77,16 +88,25 @@ class VizApp:
         self.session = Session(solver, target)
         self.checkpoint_folder = checkpoint_folder
         given = Path(solver.metadata.get("path", "model.pt"))
-        self.checkpoints = dict(checkpoints or {given.name: given})  # dropdown label -> path
+        self._checkpoint_kinds: dict[tuple[Path, float, int], str | None] = {}  # (path, mtime, size) -> arm kind
+        # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
+        # planar session could not open)
+        self.checkpoints = self._openable(dict(checkpoints or {given.name: given}), solver)
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
+        self._export_lock = threading.Lock()  # one export renders at a time
+        self._export_notes: dict[int, viser.NotificationHandle] = {}  # client id -> its export's notification
+        current = self._current_checkpoint_label()  # first: it lists the open model when the folder lacks it
         self.panel = build_panel(
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
-            checkpoint_label=self._current_checkpoint_label(), model_text=self._model_description(),
+            checkpoint_label=current, model_text=self._model_description(),
         )  # fmt: skip
         writer_class = SCENE_WRITERS[arm_kind(solver).name]
         self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
+        self._chosen_steps = int(self.panel.steps.value)  # the steps a sampler that can skip some takes
+        self._showing_steps = False  # _show_steps is moving the slider
         self._wire_panel()
+        self._show_steps()
         server.on_client_connect(lambda client: self.refresh_checkpoints())
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
         if solve_now:
@@ -213,8 +233,8 @@ class VizApp:
         panel.export_button.on_click(self._on_export)
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
-        for handle in (panel.steps, panel.refine_steps):
-            handle.on_update(lambda _: self.request_solve())
+        panel.steps.on_update(lambda _: self._on_steps())
+        panel.refine_steps.on_update(lambda _: self.request_solve())
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
         panel.refine.on_update(lambda _: self._on_refine())
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
@@ -238,8 +258,11 @@ class VizApp:
             self.writer.flush()
         return joints
 
-    def export(self, folder: Path) -> tuple[Path, Path]:
-        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`."""
+    def export(self, folder: Path, progress=None) -> tuple[Path, Path]:
+        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`.
+
+        `progress(done, total)` is called after each GIF frame (export.write_gif).
+        """
         from ikdp_viz.export import write_gif, write_trail_png
 
         done: list = []
@@ -253,19 +276,46 @@ class VizApp:
         x, y = solved.view.target
         stem = f"ikdp_{solved.request.sampler}_K{solved.view.num_samples}_seed{solved.request.seed}_{x:+.3f}_{y:+.3f}"
         seconds = float(self.panel.duration.value) or 4.0
-        gif = write_gif(solved.view, Path(folder) / f"{stem}.gif", highlight, seconds=seconds)
+        gif = write_gif(solved.view, Path(folder) / f"{stem}.gif", highlight, seconds=seconds, progress=progress)
         png = write_trail_png(solved.view, Path(folder) / f"{stem}_trail.png", highlight)
         return gif, png
 
     def _on_export(self, event: viser.GuiEvent) -> None:
-        """Export into a temporary folder and send both files to the tab that asked."""
+        """Export into a temporary folder and save both files in the downloads of the tab that asked.
+
+        The tab sees one notification per export, replacing its last one: the GIF's frames as they
+        render, then the two names. The files are saved at once (viser's `save_immediately`): without
+        it viser shows a link per file to click, and the links pile up (issue 19).
+        """
         import tempfile
 
-        if event.client is None or self.solved is None:
+        client = event.client
+        if client is None:
             return
-        with tempfile.TemporaryDirectory() as folder:
-            for path in self.export(Path(folder)):
-                event.client.send_file_download(path.name, path.read_bytes())
+        previous = self._export_notes.pop(client.client_id, None)
+        if previous is not None:  # popped, so never removed twice
+            previous.remove()
+        note = client.add_notification("Export", "starting", loading=True, with_close_button=False)
+        self._export_notes[client.client_id] = note
+        if not self._export_lock.acquire(blocking=False):
+            note.title, note.body, note.loading = "Export", "another export is rendering; try again", False
+            note.with_close_button, note.auto_close_seconds = True, 5.0
+            return
+        try:
+            progress = lambda done, total: setattr(note, "body", f"rendering the GIF: frame {done} of {total}")
+            with tempfile.TemporaryDirectory() as folder:
+                paths = self.export(Path(folder), progress=progress)
+                note.body = "sending the files"
+                for path in paths:
+                    client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
+            # a zero-width space after each "_" lets the long names wrap instead of being cut off with "..."
+            names = [path.name.replace("_", "_\u200b") for path in paths]
+            note.title, note.body = "Exported to your downloads", " and ".join(names)
+        except ValueError as error:
+            note.title, note.body, note.color = "Export failed", str(error), "red"
+        finally:
+            self._export_lock.release()
+        note.loading, note.with_close_button, note.auto_close_seconds = False, True, 8.0
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))
@@ -279,8 +329,34 @@ class VizApp:
         self.request_solve()
 
     def _on_sampler(self) -> None:
-        self.panel.steps.disabled = not SAMPLERS[str(self.panel.sampler.value)].supports_steps
+        self._show_steps()
         self.request_solve()
+
+    def _on_steps(self) -> None:
+        steps = self.panel.steps
+        if self._showing_steps or (steps.disabled and int(steps.value) == steps.max):
+            return  # _show_steps, or the writer fitting the slider to a new model's T: no one's choice
+        self._chosen_steps = int(steps.value)  # a script's or the command line's, for when a sampler can skip
+        if steps.disabled:
+            self._show_steps()  # this sampler takes all T: that is what the slider says
+        else:
+            self.request_solve()
+
+    def _show_steps(self) -> None:
+        """The steps slider: the user's choice for a sampler that can skip steps; else disabled at T, the steps
+        it does take (issue 19: DDPM showed a stale number). The user's choice comes back with such a sampler."""
+        steps = self.panel.steps
+        takes_all = not SAMPLERS[str(self.panel.sampler.value)].supports_steps
+        if takes_all and not steps.disabled:
+            self._chosen_steps = int(steps.value)
+        steps.disabled = takes_all
+        shown = steps.max if takes_all else min(self._chosen_steps, steps.max)
+        if steps.value != shown:
+            self._showing_steps = True  # not a user's change: no solve of its own
+            try:
+                steps.value = shown
+            finally:
+                self._showing_steps = False
 
     def _on_refine(self) -> None:
         self.panel.refine_steps.disabled = not self.panel.refine.value
@@ -305,10 +381,26 @@ class VizApp:
         if self.checkpoint_folder is None:
             return
         current = self._current_checkpoint_label()
-        found = list_checkpoints(self.checkpoint_folder)
+        found = self._openable(list_checkpoints(self.checkpoint_folder), self.solver)
         found.setdefault(current, self.checkpoints[current])
         self.checkpoints = found
         self.panel.checkpoint.options = tuple(found)
+
+    def _openable(self, checkpoints: dict[str, Path], solver: ikdp.Solver) -> dict[str, Path]:
+        """The entries of `checkpoints` whose model drives `solver`'s kind of arm; each file read once per version."""
+        wanted = arm_kind(solver).name
+        kept = {}
+        for label, path in checkpoints.items():
+            try:
+                stat = Path(path).stat()
+            except OSError:
+                continue
+            key = (Path(path), stat.st_mtime, stat.st_size)
+            if key not in self._checkpoint_kinds:
+                self._checkpoint_kinds[key] = checkpoint_arm_kind(Path(path))
+            if self._checkpoint_kinds[key] == wanted:
+                kept[label] = path
+        return kept
 
     def _on_checkpoint(self) -> None:
         label = self.panel.checkpoint.value
@@ -331,10 +423,15 @@ class VizApp:
             self.panel.checkpoint.value = self._current_checkpoint_label()
             return False
         with self.session.lock:
+            previous = self.session.target
             self.session.solver = solver
-            self.session.target = initial_target(solver, self.session.target)
+            self.session.target = initial_target(solver, previous)
             self.writer.post(NewModel(solver, self.session.target))
             self.panel.model_text.content = self._model_description()
             self.panel.checkpoint.value = self._current_checkpoint_label()
-            self.move_target(self.session.target)
+            self.panel.steps.max = solver.timesteps  # here too, not only on the writer's thread: _show_steps reads it
+            self._show_steps()  # the new model's T, when its sampler takes all steps
+            # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
+            same_kind_of_target = np.shape(previous) == np.shape(self.session.target)
+            self.move_target(previous if same_kind_of_target else self.session.target)
         return True

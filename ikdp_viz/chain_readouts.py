@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import numpy as np
 
 from ikdp_viz.chain_scene import ChainView
@@ -21,12 +24,24 @@ def error_pair(position_m: float, rotation_rad: float) -> str:
     return f"{1000 * position_m:.1f} mm / {np.degrees(rotation_rad):.2f}°"
 
 
+def best_note(view: ChainView, highlight: int) -> str:
+    """ ", the best by ..." when `highlight` is the best sample (ChainView.best_sample: position + 0.1 m per radian);
+    with refinement, the sample whose raw pose ranks first too when it is another one (issue 19)."""
+    if highlight != view.best_sample():
+        return ""
+    if not view.refined:
+        return ", the best by hand error at t = 0"
+    raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1]))
+    raw = "" if raw_best == highlight else f"; by raw hand error at t = 0, sample {raw_best + 1}"
+    return f", the best by refined hand error{raw}"
+
+
 def chain_solve_text(
     view: ChainView, state: int, highlight: int, *, sampler: str, seed: int, refine_steps: int, solve_seconds: float
 ) -> str:
     """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve."""
     last = view.num_states - 1
-    best = ", the best" if highlight == view.best_sample() else ""
+    best = best_note(view, highlight)
     lines = [
         f"**Step** {state} of {last} (t = {int(view.labels[state])})",
         f"**Hand error**, sample {highlight + 1} of {view.num_samples}{best}: "
@@ -52,10 +67,36 @@ def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
         f"**T** = {num_timesteps}",
         f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation {model.get('representation', '?')}",
     ]
-    numbers = {key: value for key, value in metrics.items() if isinstance(value, (int, float))}
-    if numbers:
-        lines.append("**at save** " + ", ".join(f"{key} {value:.4g}" for key, value in sorted(numbers.items())[:6]))
-    if arm.urdf_path is not None and arm.chain_description() is None:
-        # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show
-        lines.append(f"**No meshes**: {arm.urdf_path} is not here (`pip install example-robot-data`); skeletons only")
+    if metrics:
+        lines.append(saved_metrics_text(metrics))
+    if arm.recorded_urdf_path is not None and arm.chain_description() is None:
+        # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show;
+        # by the file's name only, as the recorded path is the training machine's
+        name = Path(arm.recorded_urdf_path).name
+        lines.append(f"**No meshes**: no {name} here (`pip install example-robot-data`); skeletons only")
     return "  \n".join(lines)
+
+
+def saved_metrics_text(metrics: dict) -> str:
+    """The accuracy a chain checkpoint measured when it was saved, in words with units (mm, degrees), not raw keys."""
+    numbers = {key: float(value) for key, value in metrics.items() if isinstance(value, (int, float))}
+    statistics = (("median", "median"), ("mean", "mean"), ("95th percentile", "p95"))
+    position = [f"{name} {1000 * numbers[f'tip_error_{key}']:.1f} mm" for name, key in statistics
+                if f"tip_error_{key}" in numbers]  # fmt: skip
+    rotation = [f"{name} {math.degrees(numbers[f'rotation_error_{key}']):.1f}°" for name, key in statistics
+                if f"rotation_error_{key}" in numbers]  # fmt: skip
+    parts = []
+    if position:
+        parts.append("hand position error " + ", ".join(position))
+    if rotation:
+        parts.append("rotation error " + ", ".join(rotation))
+    if "limit_violations" in numbers:
+        parts.append(f"{numbers['limit_violations']:g} joint-limit violations")
+    how = []
+    if "step" in numbers:
+        how.append(f"{numbers['step']:,.0f} training steps")
+    if "eval_targets" in numbers:
+        how.append(f"{numbers['eval_targets']:g} targets")
+    if isinstance(metrics.get("sampler"), str):
+        how.append(metrics["sampler"])
+    return "**at save**" + (f" ({', '.join(how)})" if how else "") + ": " + "; ".join(parts)

@@ -49,6 +49,10 @@ def camera_fit_3d(center: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndar
 class ChainSceneWriter(SceneWriter):
     """SceneWriter for a ChainArm: same messages and animation, robots in 3-D."""
 
+    # the readouts' unit; the rotation error is in the readouts, in degrees
+    CHART_ERROR, CHART_UNIT = "hand position error", "mm"
+    CHART_SCALE = 1000.0  # view.tip_error is in metres
+
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.ghosts: list = []  # one batched mesh node per robot mesh, K instances
         self.robot: list = []  # the highlighted sample: one opaque mesh node per robot mesh

@@ -61,9 +61,20 @@ def write_trail_png(view: SolveView, path: Path, highlight: int, *, size_pixels:
 
 
 def write_gif(
-    view: SolveView, path: Path, highlight: int, *, seconds: float = 4.0, size_pixels: int = 480, max_frames: int = 41
+    view: SolveView,
+    path: Path,
+    highlight: int,
+    *,
+    seconds: float = 4.0,
+    size_pixels: int = 480,
+    max_frames: int = 41,
+    progress=None,
 ) -> Path:
-    """The denoising from t = T to 0 as a looping GIF of at most `max_frames` frames over `seconds`."""
+    """The denoising from t = T to 0 as a looping GIF of at most `max_frames` frames over `seconds`.
+
+    Each frame says its diffusion time `t` (top left). `progress(done, total)`, if given, is called
+    after each frame is drawn: the panel shows it while a long GIF renders.
+    """
     import imageio.v2 as imageio
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -74,10 +85,18 @@ def write_gif(
     for state in states:
         figure, axes = _figure(view, size_pixels)
         _draw_state(axes, view, int(state), highlight, trail=False)
+        axes.text(0.03, 0.97, time_label(view, int(state)), transform=axes.transAxes, ha="left", va="top", fontsize=16)
         canvas = FigureCanvasAgg(figure)
         canvas.draw()
         frames.append(np.asarray(canvas.buffer_rgba())[..., :3].copy())
+        if progress is not None:
+            progress(len(frames), len(states))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     imageio.mimsave(path, frames, duration=1000 * seconds / len(frames), loop=0)
     return path
+
+
+def time_label(view: SolveView, state: int) -> str:
+    """What a GIF frame says: its diffusion time, t = T for pure noise down to t = 0."""
+    return f"t = {view.labels[state]:g}"

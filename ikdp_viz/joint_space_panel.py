@@ -30,6 +30,18 @@ class JointSpaceControls:
             second = (first + 1) % len(options)
         return first, second
 
+    def keep_apart(self, moved: viser.GuiDropdownHandle) -> None:
+        """`moved` was set to the joint the other dropdown names: move the other to the next joint, on screen too.
+
+        A square of one joint against itself is a line; the view used to draw the next joint silently while
+        both dropdowns said the same one (issue 19).
+        """
+        other = self.second if moved is self.first else self.first
+        if moved.value != other.value:
+            return
+        options = tuple(moved.options)
+        other.value = options[(options.index(moved.value) + 1) % len(options)]
+
     def fit(self, num_joints: int) -> None:
         """Offer the joints of an arm of `num_joints` links; with two there is nothing to choose."""
         options = joint_labels(max(num_joints, 2))
@@ -52,4 +64,7 @@ def build_joint_space_controls(gui: viser.GuiApi) -> JointSpaceControls:
         first = gui.add_dropdown("x: joint", options, initial_value=options[0], disabled=True)
         second = gui.add_dropdown("y: joint", options, initial_value=options[1], disabled=True)
         grid = gui.add_slider("field grid", min=4, max=40, step=1, initial_value=DEFAULT_GRID)
-    return JointSpaceControls(folder, show, first, second, grid)
+    controls = JointSpaceControls(folder, show, first, second, grid)
+    first.on_update(lambda _: controls.keep_apart(first))  # before the app's redraw, which reads the pair
+    second.on_update(lambda _: controls.keep_apart(second))
+    return controls

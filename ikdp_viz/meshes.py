@@ -47,9 +47,9 @@ def cross_mesh(half_size: float, width: float | None = None) -> trimesh.Trimesh:
     width = width if width is not None else 0.22 * half_size
     bars = []
     for angle in (np.pi / 4, -np.pi / 4):
-        bar = trimesh.creation.box(extents=(2 * half_size, width, width))
+        # flat, centred on z = 0: the scene writer lifts it over the arms and places it on the camera's ray
+        # through the target (scene_writer.over_the_point), which is exact for one height only
+        bar = trimesh.creation.box(extents=(2 * half_size, width, 0.1 * width))
         bar.apply_transform(trimesh.transformations.rotation_matrix(angle, (0, 0, 1)))
         bars.append(bar)
-    cross = trimesh.util.concatenate(bars)
-    cross.apply_translation((0.0, 0.0, 2 * width))  # above the arm, so the target is never hidden
-    return cross
+    return trimesh.util.concatenate(bars)

@@ -45,6 +45,22 @@ def plot_scales(num_timesteps: int, low: int, high: int) -> dict:
     }
 
 
+def plot_axes(low: int, high: int, unit: str) -> tuple:
+    """The chart's axes: t along x; along y the error as plain numbers at each decade low..high, in `unit`.
+
+    The y values are log10 of the error (see `plot_scales`); ticks say the errors themselves (0.01, 0.1, 1),
+    and both axes name their units (issue 19: a robot's chart plotted log10 metres, unsaid).
+    """
+    decades = tuple(float(exponent) for exponent in range(int(low), int(high) + 1))
+    return (
+        viser.uplot.Axis(label="diffusion time t (T: noise)", labelSize=20, size=30),
+        viser.uplot.Axis(
+            label=f"{unit}, log scale", labelSize=20, size=52, splits=decades,
+            values=tuple(f"{10.0**exponent:g}" for exponent in decades),
+        ),
+    )  # fmt: skip
+
+
 @dataclass
 class Panel:
     target_text: viser.GuiMarkdownHandle
@@ -144,10 +160,15 @@ def build_panel(
                     label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
                 ),
             ),
-            title="log10 tip error vs timestep t",
+            title="error against t",
             scales=plot_scales(num_timesteps, -3, 1),
-            legend=viser.uplot.Legend(show=True),
-            aspect=1.5,
+            axes=plot_axes(-3, 1, "error"),
+            # no hover values (the readouts above give them, with units) and no hover points: the "now" series
+            # is NaN off the current state, which showed "now: NaN" and a stray dot; one legend line
+            legend=viser.uplot.Legend(show=True, live=False),
+            cursor=viser.uplot.Cursor(points={"show": False}),
+            padding=(12, 24, 0, 0),  # room above the top decade's tick label
+            aspect=1.2,
         )
         export_button = gui.add_button(
             "Export GIF + PNG", icon=viser.Icon.DOWNLOAD,

@@ -18,10 +18,18 @@ def target_text(target: np.ndarray, clamped: bool, reach: tuple[float, float]) -
 
 
 def best_note(view: SolveView, highlight: int) -> str:
-    """ ", the best by ..." when `highlight` is the best sample, naming the error it is ranked by."""
+    """ ", the best by ..." when `highlight` is the best sample, naming the error it is ranked by.
+
+    With refinement "best" ranks the refined poses, so the raw pose drawn can be a poor one (issue 19):
+    the sample with the best raw tip error is named beside it when it is another one.
+    """
     if highlight != view.best_sample():
         return ""
-    return ", the best by refined tip error" if view.refined else ", the best by tip error at t = 0"
+    if not view.refined:
+        return ", the best by tip error at t = 0"
+    raw_best = int(np.argmin(view.tip_error[-1]))
+    raw = "" if raw_best == highlight else f"; by raw tip error at t = 0, sample {raw_best + 1}"
+    return f", the best by refined tip error{raw}"
 
 
 def solve_text(
@@ -67,7 +75,7 @@ def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> s
     if "tip_error_median" in metrics:
         lines.append(
             f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
-            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} ({metrics.get('sampler', '')})"
+            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} bone lengths ({metrics.get('sampler', '')})"
         )
     return "  \n".join(lines)
 

@@ -8,7 +8,9 @@ error: the viewer must open for any chain.
 
 The K translucent ghosts get `light_mesh`es: software WebGL pays for every triangle
 of every ghost in every frame (16 Panda ghosts are 37,000 triangles), and a faint
-ghost reads as well with a 44-face hull.
+ghost reads as well with a 44-face hull. The hull is built here (`convex_hull`), not by
+trimesh, whose hull needs scipy, which no user extra installs (issue 19: a `[viz,robots]`
+install drew nothing).
 """
 
 from __future__ import annotations
@@ -92,7 +94,7 @@ def robot_meshes(arm, *, prefer: str = "collision") -> list[RobotMesh]:
 def light_mesh(vertices: np.ndarray, *, points: int = 24) -> tuple[np.ndarray, np.ndarray]:
     """The convex hull of `points` vertices spread over the mesh (farthest-point order): (V, 3) float32, (F, 3) int32.
 
-    At most 2 * points - 4 faces; a mesh with no more vertices than that, or a flat one, is its own hull.
+    At most 2 * points - 4 faces; a mesh with no more vertices than that is its own hull's corners.
     """
     vertices = np.asarray(vertices, dtype=np.float64)  # (V, 3)
     chosen = [0]
@@ -101,8 +103,74 @@ def light_mesh(vertices: np.ndarray, *, points: int = 24) -> tuple[np.ndarray, n
         index = int(distance.argmax())
         chosen.append(index)
         distance = np.minimum(distance, np.linalg.norm(vertices - vertices[index], axis=1))
-    try:
-        hull = trimesh.convex.convex_hull(vertices[chosen])
-    except Exception:  # qhull refuses flat or degenerate point sets: the whole mesh's hull then
-        hull = trimesh.convex.convex_hull(vertices)
-    return np.asarray(hull.vertices, dtype=np.float32), np.asarray(hull.faces, dtype=np.int32)
+    corners = vertices[chosen]  # (P, 3)
+    faces = convex_hull(corners)
+    used, faces = np.unique(faces, return_inverse=True)  # only the corners on the hull
+    return corners[used].astype(np.float32), faces.reshape(-1, 3).astype(np.int32)
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """(F, 3) int indices into `points` (P, 3): the outward-wound triangles of their convex hull.
+
+    Incremental: a first tetrahedron of far-apart points, then each point outside replaces the faces it
+    sees by a fan to their horizon. O(P^2), meant for a few dozen points. Flat points give both sides
+    of their 2-D hull; fewer than three points off one line give no faces.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if len(points) < 3:
+        return np.zeros((0, 3), dtype=np.int64)
+    tolerance = 1e-9 * max(float(np.ptp(points, axis=0).max()), 1e-300)
+    a = 0
+    b = int(np.linalg.norm(points - points[a], axis=1).argmax())
+    off_line = np.linalg.norm(np.cross(points - points[a], points[b] - points[a]), axis=1)
+    c = int(off_line.argmax())
+    if off_line[c] <= tolerance * np.linalg.norm(points[b] - points[a]):
+        return np.zeros((0, 3), dtype=np.int64)  # all on one line
+    normal = np.cross(points[b] - points[a], points[c] - points[a])
+    normal /= np.linalg.norm(normal)
+    heights = (points - points[a]) @ normal
+    d = int(np.abs(heights).argmax())
+    if abs(heights[d]) <= tolerance:
+        return flat_hull(points, normal)
+    if heights[d] > 0:  # wind a, b, c so that d lies behind it
+        b, c = c, b
+    faces = np.array([(a, b, c), (a, d, b), (b, d, c), (c, d, a)])  # (F, 3)
+    for point in range(len(points)):
+        if point in (a, b, c, d):
+            continue
+        u, v, w = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]  # (F, 3) each
+        normals = np.cross(v - u, w - u)
+        areas = np.maximum(np.linalg.norm(normals, axis=1), 1e-300)
+        heights = np.einsum("fk,fk->f", normals, points[point] - u) / areas  # in front of each face, signed
+        seen = heights > tolerance
+        if not seen.any():
+            continue  # inside (or on) the hull so far
+        seen_edges = {(int(face[i]), int(face[(i + 1) % 3])) for face in faces[seen] for i in range(3)}
+        horizon = [(u, v, point) for u, v in seen_edges if (v, u) not in seen_edges]
+        faces = np.concatenate([faces[~seen], np.array(horizon)])
+    return faces.astype(np.int64)
+
+
+def flat_hull(points: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Points on one plane: their 2-D hull (monotone chain) as a fan of triangles, wound both ways."""
+    axis = np.eye(3)[int(np.abs(normal).argmin())]
+    first = np.cross(normal, axis)
+    first /= np.linalg.norm(first)
+    second = np.cross(normal, first)
+    flat = np.stack([points @ first, points @ second], axis=1)  # (P, 2)
+
+    def chain(order) -> list[int]:
+        kept: list[int] = []
+        for index in order:
+            while len(kept) >= 2:
+                (x1, y1), (x2, y2) = flat[kept[-1]] - flat[kept[-2]], flat[index] - flat[kept[-2]]
+                if x1 * y2 - y1 * x2 > 0:  # a left turn: keep
+                    break
+                kept.pop()
+            kept.append(index)
+        return kept[:-1]
+
+    order = sorted(range(len(points)), key=lambda index: tuple(flat[index]))
+    ring = chain(order) + chain(order[::-1])
+    fan = [(ring[0], ring[i], ring[i + 1]) for i in range(1, len(ring) - 1)]
+    return np.array(fan + [(u, w, v) for u, v, w in fan], dtype=np.int64).reshape(-1, 3)

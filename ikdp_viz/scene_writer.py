@@ -26,7 +26,7 @@ import viser
 import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
-from ikdp_viz.panel import Panel, highlight_index, plot_scales
+from ikdp_viz.panel import Panel, highlight_index, plot_axes, plot_scales
 from ikdp_viz.scene import (
     ARM_LIFT,
     HIGHLIGHT_LIFT,
@@ -69,6 +69,18 @@ def camera_fit(reach: float) -> tuple[tuple[float, float, float], tuple[float, f
     """
     distance = 1.55 * reach
     return (0.0, -1e-3 * distance, distance), (0.0, 0.0, 0.0)
+
+
+def over_the_point(point, height: float, camera) -> np.ndarray:
+    """(3,) where a marker `height` above the plane draws exactly over `point` (2,) on it, seen from `camera` (3,).
+
+    On the ray from the camera to the point: straight above it, the perspective camera would draw the
+    lifted target cross 15 to 25 px off where the tips meet (issue 19). Exact for the initial camera
+    every tab starts with; orbiting the view shifts it by at most height / distance of the radius.
+    """
+    ground = np.array([float(point[0]), float(point[1]), 0.0])
+    camera = np.asarray(camera, dtype=np.float64)
+    return ground + (camera - ground) * (height / camera[2])
 
 
 # ------------------------------------------------------------------ messages
@@ -157,6 +169,9 @@ class Animation:
 
 class SceneWriter:
     """Owns the scene nodes, the solve on screen and the animation; applies posted messages on its own thread."""
+
+    CHART_ERROR, CHART_UNIT = "tip error", "bone lengths"  # what the chart's y axis shows, in what unit
+    CHART_SCALE = 1.0  # view.tip_error times this is in that unit
 
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.server, self.panel = server, panel
@@ -297,7 +312,10 @@ class SceneWriter:
             self.prior_lines = None
         self._recolor()
         self._ensure_arm_nodes()
-        self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
+        decades = readouts.error_range(solved.view.tip_error * self.CHART_SCALE)
+        self.panel.plot.scales = plot_scales(self.solver.timesteps, *decades)
+        self.panel.plot.axes = plot_axes(*decades, self.CHART_UNIT)
+        self.panel.plot.title = f"{self.CHART_ERROR} against t"
         self._write_refined()
         last = solved.view.num_states - 1
         released = self._replay_target is not None and np.array_equal(solved.request.target, self._replay_target)
@@ -372,7 +390,13 @@ class SceneWriter:
             if message.force:
                 self.gizmo.position = position + (1e-3, 0.0, 0.0)
             self.gizmo.position = position
+        # the cross is no child of the gizmo: during a drag past the boundary it stays on the clamped point
+        self.cross.position = self._cross_position()
         self._write_target_text()
+
+    def _cross_position(self) -> np.ndarray:
+        """Over everything (lifted) yet drawn on the target, as the initial camera sees it."""
+        return over_the_point(self.target, TARGET_LIFT * self.sizes.joint, self.server.initial_camera.position)
 
     def _write_target_text(self) -> None:
         self.panel.target_text.content = readouts.target_text(self.target, self.target_clamped, self.solver.reach)
@@ -427,7 +451,7 @@ class SceneWriter:
         """The slider, the chart's dot and the readouts at the state on screen; `now` is when (time.monotonic())."""
         view, highlight = self.solved.view, self.highlight_index()
         self.panel.timestep.value = int(view.labels[self.state])  # the app ignores slider updates with no client
-        self.panel.plot.data = error_curves(view, highlight, self.state)
+        self.panel.plot.data = error_curves(view, highlight, self.state, scale=self.CHART_SCALE)
         self._write_readouts()
         self._panel_written = now
 
@@ -469,6 +493,8 @@ class SceneWriter:
         self.refined_lines.visible = final_shown
         self.refined_tips.visible = final_shown
         self.joint_space.draw(self.solver, solved, state, colors, highlight)
+        self.cross.position = self._cross_position()  # the joint-space view may have moved the camera (viser skips
+        # a position it holds already)
 
     def animating(self, state: int) -> bool:
         """`state` is drawn as a frame of a playing animation, not its last: draw the light version of the scene.
@@ -547,14 +573,14 @@ class SceneWriter:
             position=(float(self.target[0]), float(self.target[1]), 0.0),
         )  # fmt: skip
         self.gizmo.on_update(self._gizmo_update)
-        cross = meshes.cross_mesh(self.sizes.cross)
-        self.cross = scene.add_mesh_simple(
-            "/target/cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
-            position=(0.0, 0.0, TARGET_LIFT * self.sizes.joint),
-        )  # fmt: skip
-        self._static_nodes = [*nodes, self.gizmo]
         position, look_at = camera_fit(outer)
         self.server.initial_camera.position, self.server.initial_camera.look_at = position, look_at
+        cross = meshes.cross_mesh(self.sizes.cross)
+        self.cross = scene.add_mesh_simple(
+            "/target_cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
+            position=self._cross_position(),
+        )  # fmt: skip
+        self._static_nodes = [*nodes, self.gizmo, self.cross]
         for client in self.server.get_clients().values():  # open tabs too: the new arm may reach farther
             with client.atomic():
                 client.camera.position, client.camera.look_at = position, look_at

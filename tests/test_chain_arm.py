@@ -3,6 +3,7 @@ quaternion conventions, the config round trip, and damped least squares convergi
 
 import io
 import math
+from pathlib import Path
 
 import pytest
 import torch
@@ -254,7 +255,8 @@ def test_config_round_trip_without_the_urdf(panda):
     rebuilt = arm_from_config(loaded)
     assert isinstance(rebuilt, ChainArm) and rebuilt.description is None
     assert rebuilt.joint_names == panda.joint_names and rebuilt.ee_link == "panda_hand"
-    assert rebuilt.urdf_path == "/nowhere/panda.urdf" and rebuilt.target == "pose"
+    assert rebuilt.recorded_urdf_path == "/nowhere/panda.urdf" and rebuilt.target == "pose"
+    assert rebuilt.urdf_path is None  # never a path that is not on this machine
     joints = poses(panda, 16)
     torch.testing.assert_close(rebuilt.end_effector(joints), panda.end_effector(joints), atol=0, rtol=0)
     torch.testing.assert_close(rebuilt.link_poses(joints), panda.link_poses(joints), atol=0, rtol=0)
@@ -271,9 +273,19 @@ def test_a_checkpoints_urdf_path_from_another_machine_finds_the_installed_copy(p
     elsewhere = "/home/someone/venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots/"
     moved = ChainArm.from_config({**panda.to_config(), "urdf_path": elsewhere + ROBOTS["panda"].urdf})
     assert [link.name for link in moved.chain_description().links] == panda.link_names
-    assert moved.urdf_path.startswith("/home/someone/")  # still says what it was trained on
+    assert moved.urdf_path == panda.urdf_path and Path(moved.urdf_path).is_file()  # this machine's copy
+    assert moved.recorded_urdf_path.startswith("/home/someone/")  # what it was trained on, kept for the record
+    assert moved.to_config()["urdf_path"] == moved.recorded_urdf_path  # a re-saved checkpoint records it unchanged
     missing = ChainArm.from_config({**panda.to_config(), "urdf_path": elsewhere + "no_robot/urdf/none.urdf"})
-    assert missing.chain_description() is None
+    assert missing.chain_description() is None and missing.urdf_path is None
+
+
+def test_the_shipped_panda_model_names_this_machines_urdf():
+    import ikdp
+
+    arm = ikdp.load("ikdp_panda").arm
+    assert Path(arm.urdf_path).is_file() and arm.urdf_path.endswith("panda_description/urdf/panda.urdf")
+    assert [link.name for link in arm.chain_description().links][:2] == ["panda_link0", "panda_link1"]
 
 
 def test_robot_names_load(panda):

@@ -139,7 +139,7 @@ def test_cli_bad_option_exits_with_a_message(tmp_path):
     assert "lengths" in result.stderr and "Traceback" not in result.stderr
 
 
-def test_interrupted_training_leaves_a_loadable_checkpoint(tmp_path):
+def test_interrupted_training_leaves_a_loadable_checkpoint_even_started_with_sigint_ignored(tmp_path):
     output = tmp_path / "model.pt"
     command = [
         sys.executable,
@@ -168,12 +168,21 @@ def test_interrupted_training_leaves_a_loadable_checkpoint(tmp_path):
         "--log-dir",
         str(tmp_path / "tb"),
     ]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # as `nohup ... &` or a CI runner starts it: SIGINT ignored, so Python installs no Ctrl-C handler of its own
+    # (issue 19: the trainer then ran on through Ctrl-C); main() installs one
+    ignore_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ignore_sigint
+    )
     deadline = time.monotonic() + 120
     while not output.exists() and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.1)  # wait until the loop runs: the first periodic checkpoint
     process.send_signal(signal.SIGINT)  # what Ctrl-C sends
-    _, stderr = process.communicate(timeout=120)
+    try:
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
     assert process.returncode == 130, stderr[-500:]
     assert "Traceback" not in stderr
     solver = ikdp.load(output)

@@ -17,6 +17,7 @@ from viz_helpers import drag_gizmo, running_app, settle
 import ikdp
 from ikdp.train import TrainConfig, train
 from ikdp_viz.app import list_checkpoints
+from ikdp_viz.scene import HIGHLIGHT_LIFT
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.solving import SolveRequest, solve
 
@@ -231,6 +232,34 @@ def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_pa
     assert f"seed{app.solved.request.seed}" in gif.name and png.name.endswith("_trail.png")
 
 
+def test_the_cross_lies_on_the_cameras_ray_through_the_target_above_every_arm(app):
+    for point in [(0.3, 1.1), (10.0, -10.0)]:  # inside, and clamped to the boundary
+        app.move_target(point)
+        settle(app)
+        ground = np.array([*app.target, 0.0])
+        camera = np.asarray(app.server.initial_camera.position)
+        cross = np.asarray(app.cross.position)
+        assert np.linalg.norm(np.cross(cross - ground, camera - ground)) < 1e-9  # the same pixel as the target
+        sizes = app.writer.sizes
+        assert cross[2] - 0.05 * sizes.cross > HIGHLIGHT_LIFT * sizes.joint + sizes.tip  # over the highlighted tip
+
+
+def test_each_gif_frame_says_its_t_and_progress_is_reported_per_frame(app, tmp_path):
+    import imageio.v2 as imageio
+
+    calls: list[tuple[int, int]] = []
+    gif, _ = app.export(tmp_path, progress=lambda done, total: calls.append((done, total)))
+    frames = imageio.mimread(gif)
+    assert calls == [(done, len(frames)) for done in range(1, len(frames) + 1)]
+    corner = [np.asarray(frame)[:40, :100, :3] for frame in frames]  # top left, outside the workspace's circle
+    assert all((box.max(axis=-1) < 100).sum() > 20 for box in corner)  # dark text on every frame
+    assert not np.array_equal(corner[0], corner[-1])  # t = T first, t = 0 last: different labels
+    from ikdp_viz.export import time_label
+
+    view = app.solved.view
+    assert time_label(view, 0) == f"t = {app.solver.timesteps}" and time_label(view, view.num_states - 1) == "t = 0"
+
+
 def test_a_fixed_seed_repeats_the_solve_and_new_seed_each_move_changes_it(app):
     drag_gizmo(app, 0.5, 1.5)
     settle(app)
@@ -336,6 +365,78 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     app.panel.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
     assert app.solver.num_links == 2 and app.panel.checkpoint.value == "two.pt"
     assert "Could not load" in app.panel.model_text.content and "junk.pt" in app.panel.model_text.content
+
+
+def test_steps_shows_t_while_ddpm_takes_all_and_the_choice_comes_back(app, solver):
+    steps = app.panel.steps
+    assert app.panel.sampler.value == "ddpm" and steps.disabled and steps.value == solver.timesteps
+    app.panel.sampler.value = "ddim"
+    settle(app)
+    assert not steps.disabled and steps.value == 20 and app.solved.request.steps == 20
+    steps.value = 7
+    settle(app)
+    assert app.solved.request.steps == 7 and app.solved.view.num_states == 8
+    app.panel.sampler.value = "ddpm"
+    settle(app)
+    assert steps.disabled and steps.value == solver.timesteps and app.solved.view.num_states == solver.timesteps + 1
+    app.panel.sampler.value = "dpmpp2m"
+    settle(app)
+    assert not steps.disabled and steps.value == 7 and app.solved.request.steps == 7
+
+
+def test_a_new_model_clamps_the_old_target_and_says_so(app, two_link_checkpoint):
+    app.move_target((0.0, 2.8))  # inside the three-link arm's reach of 3, outside the two-link arm's 2
+    settle(app)
+    assert "Clamped" not in app.panel.target_text.content
+    assert app.load_checkpoint(Path(two_link_checkpoint))
+    settle(app)
+    np.testing.assert_allclose(app.target, [0.0, 2.0], atol=1e-12)
+    assert "Clamped to the workspace boundary* (r = 2.00)" in app.panel.target_text.content
+    assert app.panel.steps.disabled and app.panel.steps.value == 12  # DDPM on the new model: all its T = 12 steps
+
+
+def test_the_dropdown_offers_only_models_of_the_arm_this_viewer_draws(
+    solver, tiny_checkpoint, two_link_checkpoint, tiny_chain_checkpoint, tmp_path
+):
+    import shutil
+
+    from ikdp_viz.app import checkpoint_arm_kind
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    for name, source in (("planar3.pt", tiny_checkpoint), ("planar2.pt", two_link_checkpoint)):
+        shutil.copy(source, folder / name)
+    shutil.copy(tiny_chain_checkpoint, folder / "robot.pt")
+    (folder / "junk.pt").write_text("not a checkpoint")
+    assert [checkpoint_arm_kind(folder / name) for name in ("planar3.pt", "robot.pt", "junk.pt")] == [
+        "planar", "chain", None
+    ]  # fmt: skip
+    with running_app(solver, solve_now=False, checkpoints=list_checkpoints(folder), checkpoint_folder=folder) as app:
+        assert set(app.panel.checkpoint.options) == {"planar2.pt", "planar3.pt", str(tiny_checkpoint)}
+        shutil.copy(tiny_chain_checkpoint, folder / "robot2.pt")  # trained while the viewer runs
+        shutil.copy(two_link_checkpoint, folder / "planar4.pt")
+        app.refresh_checkpoints()
+        assert set(app.panel.checkpoint.options) == {"planar2.pt", "planar3.pt", "planar4.pt", str(tiny_checkpoint)}
+    chain_solver = ikdp.load(tiny_chain_checkpoint)
+    with running_app(
+        chain_solver, solve_now=False, checkpoints=list_checkpoints(folder), checkpoint_folder=folder
+    ) as app:
+        assert set(app.panel.checkpoint.options) == {"robot.pt", "robot2.pt", str(tiny_chain_checkpoint)}
+
+
+def test_one_joint_on_both_axes_moves_the_other_dropdown_on(app):
+    controls = app.panel.joint_space
+    controls.show.value = True  # drawn before the next line: the writer offers the arm's three joints
+    assert controls.first.options == ("θ1", "θ2", "θ3") and controls.joints() == (0, 1)
+    controls.second.value = "θ3"
+    controls.first.value = "θ3"  # the same joint as the y axis: the y axis moves on, in the panel
+    assert (controls.first.value, controls.second.value) == ("θ3", "θ1") and controls.joints() == (2, 0)
+    controls.second.value = "θ3"
+    assert (controls.first.value, controls.second.value) == ("θ1", "θ3") and controls.joints() == (0, 2)
+    app.writer.flush()
+    labels = [label.text for label in app.writer.joint_space.labels[:2]]
+    assert labels == ["θ1", "θ3"]  # the square's axes say what the dropdowns say
+    controls.show.value = False
 
 
 def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):

@@ -99,9 +99,29 @@ def test_refine_shows_the_polished_error_in_millimetres_and_degrees(app):
     assert view.refined and app.writer.refined_lines.visible
     text = app.panel.readout_text.content
     assert re.search(r"refined \(5 DLS steps\): \d+\.\d mm / \d+\.\d\d°", text), text
-    assert re.search(r"\*\*Hand error\*\*, sample \d+ of 4, the best: [\d.]+ mm / [\d.]+°", text), text
+    best = re.search(
+        r"\*\*Hand error\*\*, sample (\d+) of 4, the best by refined hand error(.*): [\d.]+ mm / [\d.]+°", text
+    )
+    assert best, text
+    view = app.solved.view
+    raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1])) + 1
+    named = f"; by raw hand error at t = 0, sample {raw_best}" if raw_best != int(best.group(1)) else ""
+    assert best.group(2) == named  # the raw ranking named when it differs (issue 19)
     app.show_state(0)
     assert not app.writer.refined_lines.visible  # the polish belongs to the final pose
+
+
+def test_the_chart_plots_the_hand_error_in_millimetres_and_says_so(app):
+    view, highlight = app.solved.view, app.highlight_index()
+    t, median, chosen, _ = app.panel.plot.data
+    order = np.argsort(view.labels, kind="stable")
+    np.testing.assert_allclose(chosen, np.log10(np.maximum(1000 * view.position_error[order, highlight], 1e-6)))
+    low, high = app.panel.plot.scales["y"]["range"]
+    assert 10**low <= 1000 * view.position_error.min() + 1e-9 and 1000 * view.position_error.max() <= 10**high
+    x_axis, y_axis = app.panel.plot.axes
+    assert y_axis["label"] == "mm, log scale" and "t" in x_axis["label"]
+    assert [float(value) for value in y_axis["values"]] == [10.0**exponent for exponent in y_axis["splits"]]
+    assert app.panel.plot.title == "hand position error against t"
 
 
 def test_the_prior_and_a_planar_checkpoint_are_handled(app, tiny_checkpoint):

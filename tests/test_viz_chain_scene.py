@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -23,7 +24,7 @@ from ikdp_viz.chain_scene import (
     pose_target,
     skeleton_segments,
 )
-from ikdp_viz.robot_meshes import light_mesh, robot_meshes
+from ikdp_viz.robot_meshes import convex_hull, light_mesh, robot_meshes
 
 K = 3  # samples per solve: enough to have a best one
 
@@ -138,12 +139,46 @@ def test_a_ghosts_light_mesh_is_a_small_hull_inside_the_link_mesh_and_as_large()
     assert len(vertices) == 4 and len(faces) == 4
 
 
+def test_the_own_hull_is_scipys_hull_and_the_ghosts_need_no_scipy(monkeypatch):
+    rng = np.random.default_rng(0)
+    clouds = [rng.normal(size=(int(rng.integers(4, 40)), 3)) for _ in range(40)]
+    clouds += [np.round(rng.normal(size=(30, 3))) for _ in range(20)]  # repeated and coplanar points
+    clouds += [trimesh.creation.box().vertices, np.vstack([trimesh.creation.box().vertices] * 2)]
+    for points in clouds:
+        faces = convex_hull(points)
+        hull = trimesh.Trimesh(points, faces)
+        assert hull.is_watertight and hull.is_winding_consistent and hull.volume > 0  # outward, closed
+        assert hull.volume == pytest.approx(trimesh.convex.convex_hull(points).volume, rel=1e-9)  # scipy's qhull
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 0]])
+    assert sorted(np.unique(convex_hull(square))) == [0, 1, 2, 3] and len(convex_hull(square)) == 4  # both sides
+    assert len(convex_hull(np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2.0]]))) == 0  # a line has no faces
+    monkeypatch.setitem(sys.modules, "scipy", None)  # no user extra installs scipy (issue 19)
+    monkeypatch.setitem(sys.modules, "scipy.spatial", None)
+    for mesh in robot_meshes(load_robot("panda")):
+        vertices, faces = light_mesh(mesh.vertices)
+        assert trimesh.Trimesh(vertices, faces).is_watertight
+
+
+def test_the_saved_metrics_are_words_with_units_not_keys():
+    metrics = {"eval_targets": 200, "tip_error_median": 0.0112, "tip_error_mean": 0.032, "tip_error_p95": 0.139,
+               "sampler": "ddpm raw, K=1", "rotation_error_median": 0.0416, "rotation_error_mean": 0.2396,
+               "limit_violations": 0, "step": 10000}  # fmt: skip
+    text = chain_model_text(load_robot("panda"), 100, {"metrics": metrics})
+    assert "**at save** (10,000 training steps, 200 targets, ddpm raw, K=1): " in text
+    assert "hand position error median 11.2 mm, mean 32.0 mm, 95th percentile 139.0 mm" in text
+    assert "rotation error median 2.4°, mean 13.7°; 0 joint-limit violations" in text
+    assert "_" not in text.split("**at save**")[1]  # no raw key
+    position_only = chain_model_text(load_robot("panda"), 100, {"metrics": {"tip_error_median": 0.002}})
+    assert position_only.endswith("**at save**: hand position error median 2.0 mm")
+
+
 def test_the_model_text_says_when_the_robots_meshes_are_not_here():
     panda = load_robot("panda")
     assert "No meshes" not in chain_model_text(panda, 100, {})
     elsewhere = ikdp.ChainArm.from_config({**panda.to_config(), "urdf_path": "/gone/panda.urdf"})
     text = chain_model_text(elsewhere, 100, {})
-    assert "**No meshes**" in text and "/gone/panda.urdf" in text and "example-robot-data" in text
+    assert "**No meshes**" in text and "panda.urdf" in text and "example-robot-data" in text
+    assert "/gone" not in text  # never a path of the machine the model was trained on
 
 
 def test_an_arm_without_meshes_draws_none_and_a_bad_choice_is_refused():

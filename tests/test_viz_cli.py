@@ -84,7 +84,7 @@ def test_a_bad_port_or_host_is_one_line_and_exit_status_2(arguments, reason):
     assert "Traceback" not in result.stderr and result.stdout == ""
 
 
-def test_default_model_a_taken_port_and_ctrl_c(tmp_path):
+def test_default_model_a_taken_port_and_ctrl_c_even_started_with_sigint_ignored(tmp_path):
     """From another folder, with no --ckpt: the shipped model loads, the next port is used, Ctrl-C exits cleanly."""
     from ikdp.shipped import DEFAULT_MODEL, list_shipped
 
@@ -101,6 +101,9 @@ def test_default_model_a_taken_port_and_ctrl_c(tmp_path):
             stderr=subprocess.PIPE,
             text=True,
             env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))},
+            # as `nohup ... &` or a CI runner starts it: SIGINT ignored, so Python installs no Ctrl-C handler of
+            # its own (issue 19: the viewer then ran on through Ctrl-C); main() installs one
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
         )
         try:
             first = process.stdout.readline()

@@ -28,6 +28,19 @@ def test_solve_text_reads_the_shown_step_and_the_end_for_the_highlighted_sample(
     assert "sample 2 of 2:" in ddim  # not the best: no ranking note
 
 
+def test_with_refinement_the_best_says_it_ranks_refined_errors_and_names_the_best_raw_sample():
+    import dataclasses
+
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # raw tip errors at t = 0: 0 and 0.7071
+    refined = dataclasses.replace(view, refined=True, final_tip_error=np.array([0.5, 0.0]))  # sample 2 polishes best
+    text = solve_text(refined, 2, refined.best_sample(), sampler="ddpm", seed=0, refine_steps=5, solve_seconds=0.0)
+    assert "sample 2 of 2, the best by refined tip error; by raw tip error at t = 0, sample 1: " in text
+    same = dataclasses.replace(view, refined=True, final_tip_error=np.array([0.0, 0.5]))  # both rank sample 1 first
+    assert "sample 1 of 2, the best by refined tip error: " in solve_text(
+        same, 2, 0, sampler="ddpm", seed=0, refine_steps=5, solve_seconds=0.0
+    )
+
+
 def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
     metadata = {
         "model": {"denoiser": {"kind": "film"}, "representation": "cossin", "schedule": {"kind": "linear"}},
@@ -36,7 +49,7 @@ def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
     text = model_text(4, (1.0, 1.0, 1.0, 1.0), 80, metadata)
     assert "**N** = 4 links (lengths 1, 1, 1, 1), **T** = 80" in text
     assert "**denoiser** film, representation cossin, schedule linear" in text
-    assert "10000 steps: median tip error 0.0267, p95 0.0480" in text
+    assert "10000 steps: median tip error 0.0267, p95 0.0480 bone lengths" in text
     assert "trained" not in model_text(2, (1.0, 0.5), 20, {})
 
 
