@@ -14,6 +14,7 @@ import viser
 import viser.uplot
 
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
+from ikdp_viz.learn_panel import LearnControls, build_trail_of
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -71,6 +72,7 @@ class Panel:
     checkpoint: viser.GuiDropdownHandle
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
+    learn: LearnControls  # what makes the denoising readable (learn_panel.py)
 
 
 def build_panel(
@@ -104,6 +106,7 @@ def build_panel(
         show_trail = gui.add_checkbox(
             "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
         )
+        trail_of = build_trail_of(gui)
         show_estimate = gui.add_checkbox(
             "show x̂0", False, hint="Ghosted in purple: the denoiser's estimate of the final pose at the step shown"
         )
@@ -159,5 +162,5 @@ def build_panel(
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
-        readout_text, plot, export_button, checkpoint, model_markdown, joint_space,
+        readout_text, plot, export_button, checkpoint, model_markdown, joint_space, LearnControls(trail_of),
     )  # fmt: skip

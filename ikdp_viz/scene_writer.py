@@ -25,6 +25,7 @@ import viser
 
 import ikdp
 from ikdp_viz import meshes, readouts
+from ikdp_viz.emphasis import emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.panel import Panel, highlight_index, plot_scales
 from ikdp_viz.scene import (
@@ -43,7 +44,6 @@ from ikdp_viz.scene import (
     line_colors,
     nearest_state,
     polyline_segments,
-    sample_colors,
     trail_colors,
     trail_until,
 )
@@ -394,8 +394,13 @@ class SceneWriter:
 
     def _recolor(self) -> None:
         view = self.solved.view
-        self._colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
-        self._trail_colors = trail_colors(self._colors, view.num_links)
+        self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, self.highlight_index(), self.trail_of)
+        self._trail_colors = trail_colors(ramp, view.num_links)
+
+    @property
+    def trail_of(self) -> str:
+        """Whose trail is drawn and drawn dark: "highlighted" (the paper's figure) or "all samples"."""
+        return str(self.panel.learn.trail_of.value)
 
     def highlight_index(self) -> int:
         """The 0-based sample the highlight dropdown names, for the solve on screen (0 before any)."""
@@ -442,10 +447,14 @@ class SceneWriter:
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
+        if estimate is not None:
+            estimate = estimate[estimate_rows(num_samples, highlight, self.trail_of)]
         if self.panel.show_trail.value:
+            rows = trail_rows(num_samples, num_links, highlight, self.trail_of)
             points, segment_colors = trail_until(
-                solved.trail_points, self._trail_colors, state, most_states=self.trail_states_limit(state)
-            )
+                solved.trail_points[:, rows], self._trail_colors[:, rows], state,
+                most_states=self.trail_states_limit(state),
+            )  # fmt: skip
             self.trail.points = points
             self.trail.colors = segment_colors
             self.trail.visible = True
@@ -482,8 +491,11 @@ class SceneWriter:
         return animation is not None and state < animation.last
 
     def trail_states_limit(self, state: int) -> int | None:
-        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end."""
-        return PLAYING_TRAIL_STATES if self.animating(state) else None
+        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end.
+
+        One sample's whole trail (81 states of N links) costs the page little: it is drawn in full.
+        """
+        return PLAYING_TRAIL_STATES if self.animating(state) and not follows_one(self.trail_of) else None
 
     def _write_play_label(self) -> None:
         playing = self.animation is not None

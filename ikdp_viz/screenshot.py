@@ -55,6 +55,13 @@ class ScreenshotConfig:
     seed: int = 3  # sampling seed
     chromium: str = "/usr/bin/chromium"  # browser executable
     size: tuple[int, int] = (1400, 900)  # viewport width height
+    trail_of: str = "highlighted"  # the panel's "trail of": highlighted or "all samples"
+    show_estimate: bool = False  # tick "show x̂0"
+    joint_space: bool = False  # tick "joint space view"
+    prior: bool = False  # press "Draw from the prior" once solved
+    timestep: int | None = None  # the step shown (None: t = 0, the final pose)
+    refine_steps: int = 0  # tick "refine" with this many steps (0: off)
+    sampler: str | None = None  # the panel's sampler (None: the model's default)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -82,8 +89,20 @@ def main(argv: list[str] | None = None) -> None:
     )
     app.panel.samples.value = args.samples
     app.panel.seed.value = args.seed
+    app.panel.learn.trail_of.value = args.trail_of
+    app.panel.show_estimate.value = args.show_estimate
+    app.panel.joint_space.show.value = args.joint_space
+    if args.sampler is not None:
+        app.panel.sampler.value = args.sampler
+    if args.refine_steps:
+        app.panel.refine_steps.value = args.refine_steps
+        app.panel.refine.value = True
     app.move_target(app.target)  # args.target pulled into the workspace, or the arm's first target
     app.wait_until_still(60)
+    if args.timestep is not None:
+        app.panel.timestep.value = args.timestep
+    if args.prior:
+        app.draw_prior()
     try:
         with sync_playwright() as playwright:
             browser, page = open_viewer_page(playwright, server, chromium=args.chromium, viewport=args.size)

@@ -58,6 +58,7 @@ def final_polylines(app) -> np.ndarray:
 
 
 def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, solver):
+    app.panel.learn.trail_of.value = "all samples"  # every final polyline in the trail
     drag_gizmo(app, 1.1, -0.7)
     settle(app)
     view = app.solved.view
@@ -76,6 +77,7 @@ def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, so
 
 
 def test_scrubbing_the_timestep_slider_shows_that_state(app):
+    app.panel.learn.trail_of.value = "all samples"
     view = app.solved.view
     final = drawn_joints(app).copy()
     app.panel.timestep.value = 7
@@ -131,12 +133,37 @@ def test_a_drag_released_past_the_boundary_still_reads_clamped_and_sends_the_cro
 
 
 def test_the_trail_toggle_shows_all_intermediate_poses_or_none(app):
+    app.panel.learn.trail_of.value = "all samples"
     view = app.solved.view
     assert app.trail.visible and app.trail.points.shape[0] == view.num_states * view.num_samples * view.num_links
     app.panel.show_trail.value = False
     assert not app.trail.visible and app.links.visible
     app.panel.show_trail.value = True
     assert app.trail.visible
+
+
+def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure(app):
+    view, highlight = app.solved.view, app.highlight_index()
+    num_samples, num_links = view.num_samples, view.num_links
+    assert app.panel.learn.trail_of.value == "highlighted"
+    # the trail is the highlighted sample's alone, every state of it, darkening toward t = 0
+    assert app.trail.points.shape[0] == view.num_states * num_links
+    per_state = app.trail.points.reshape(view.num_states, num_links, 2, 3)[..., :2]
+    assert np.allclose(per_state[:, :, 0], view.joints[:, highlight, :-1], atol=1e-5)
+    brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
+    assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
+    # the others' final poses light, the highlighted one dark
+    joint_colors = app.joints.batched_colors.reshape(num_samples, num_links + 1, 3).astype(int)
+    others = np.delete(joint_colors[:, 0], highlight, axis=0)
+    assert (others.min(axis=1) >= 150).all()  # light grey
+    assert joint_colors[highlight, 0].sum() < others.sum(axis=1).min() - 200  # far darker
+    # x̂0 of the followed sample only; all of them with "all samples"
+    app.panel.show_estimate.value = True
+    app.panel.timestep.value = 10
+    assert app.estimate_lines.points.shape[0] == num_links
+    app.panel.learn.trail_of.value = "all samples"
+    assert app.estimate_lines.points.shape[0] == num_samples * num_links
+    assert app.trail.points.shape[0] == (app.state + 1) * num_samples * num_links
 
 
 def test_samples_and_highlight_change_what_is_drawn(app):
@@ -183,6 +210,7 @@ def test_the_estimate_toggle_ghosts_the_denoisers_x0_of_the_step_shown(app, solv
     view = app.solved.view
     assert view.estimate_joints.shape == (view.num_states - 1, 16, solver.num_links + 1, 2)
     assert not app.estimate_lines.visible  # off by default
+    app.panel.learn.trail_of.value = "all samples"  # every sample's x̂0
     app.panel.show_estimate.value = True
     app.panel.timestep.value = 10
     state = app.state
