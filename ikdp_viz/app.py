@@ -207,7 +207,8 @@ class VizApp:
         panel.play_button.on_click(lambda event: self._post(event, TogglePlay()))
         joint_space = panel.joint_space
         for toggle in (panel.show_trail, panel.show_estimate, panel.highlight, joint_space.show, joint_space.first,
-                       joint_space.second, joint_space.grid, panel.learn.trail_of):  # fmt: skip
+                       joint_space.second, joint_space.grid, panel.learn.trail_of,
+                       panel.learn.clock, panel.duration):  # fmt: skip
             toggle.on_update(lambda event: self._post(event, Redraw()))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.export_button.on_click(self._on_export)

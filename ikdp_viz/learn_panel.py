@@ -1,4 +1,4 @@
-"""The panel's controls that make the denoising readable: whose trail is drawn (more in later commits)."""
+"""The panel's controls that make the denoising readable: whose trail is drawn, the animation's clock."""
 
 from __future__ import annotations
 
@@ -6,12 +6,15 @@ from dataclasses import dataclass
 
 import viser
 
+from ikdp_viz.clock import CLOCK_CHOICES
 from ikdp_viz.emphasis import TRAIL_CHOICES
 
 
 @dataclass
 class LearnControls:
     trail_of: viser.GuiDropdownHandle  # the highlighted sample's trail (the paper's figure) or every sample's
+    clock: viser.GuiDropdownHandle  # the animation's time spaced by noise level or by step
+    clock_note: viser.GuiMarkdownHandle  # where the animation's time goes, said on screen
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
@@ -20,3 +23,12 @@ def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
         hint="highlighted: the paper's figure, one sample's denoising from faint to dark, the others light; "
         "all samples: every sample's trail and arm dark",
     )  # fmt: skip
+
+
+def build_clock(gui: viser.GuiApi) -> tuple[viser.GuiDropdownHandle, viser.GuiMarkdownHandle]:
+    clock = gui.add_dropdown(
+        "clock", CLOCK_CHOICES, initial_value=CLOCK_CHOICES[0],
+        hint="noise level: each step lasts in proportion to how much it lowers the noise level σ = √(1 − ᾱ_t), so "
+        "the animation dwells where the poses form; step: every step the same time",
+    )  # fmt: skip
+    return clock, gui.add_markdown("")

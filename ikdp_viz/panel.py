@@ -14,7 +14,7 @@ import viser
 import viser.uplot
 
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.learn_panel import LearnControls, build_trail_of
+from ikdp_viz.learn_panel import LearnControls, build_clock, build_trail_of
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -103,6 +103,7 @@ def build_panel(
             "duration (s)", animation_seconds, min=0.0, max=30.0, step=0.1,
             hint="Time the animation takes from t = T to 0",
         )  # fmt: skip
+        clock, clock_note = build_clock(gui)
         show_trail = gui.add_checkbox(
             "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
         )
@@ -159,8 +160,9 @@ def build_panel(
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
+    learn = LearnControls(trail_of, clock, clock_note)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
-        readout_text, plot, export_button, checkpoint, model_markdown, joint_space, LearnControls(trail_of),
+        readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn,
     )  # fmt: skip

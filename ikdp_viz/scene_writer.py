@@ -25,6 +25,7 @@ import viser
 
 import ikdp
 from ikdp_viz import meshes, readouts
+from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
 from ikdp_viz.emphasis import emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.panel import Panel, highlight_index, plot_scales
@@ -144,11 +145,16 @@ class Animation:
     last: int  # the state it ends on
     seconds_per_state: float  # 0: jump to the last state
     started_at: float  # time.monotonic() when `first` was shown
+    offsets: np.ndarray | None = None  # (S+1,) when each state shows, seconds from state 0 (clock.py); None: evenly
 
     def state_at(self, now: float) -> int:
         """The state the clock has reached at `now`: a slow frame skips states, it never slows the animation."""
         if self.seconds_per_state <= 0:
             return self.last
+        if self.offsets is not None:
+            elapsed = now - self.started_at + self.offsets[self.first]
+            reached = int(np.searchsorted(self.offsets, elapsed, side="right")) - 1
+            return int(np.clip(reached, self.first, self.last))
         return min(self.last, self.first + int((now - self.started_at) / self.seconds_per_state))
 
 
@@ -266,6 +272,7 @@ class SceneWriter:
                 self._play_from_start(user=False)
         elif isinstance(message, Redraw):
             if self.solved is not None:
+                self._write_clock_note()
                 self._recolor()
                 self._draw_state(self.state)
         elif isinstance(message, PlaceTarget):
@@ -297,6 +304,7 @@ class SceneWriter:
             self.prior_lines = None
         self._recolor()
         self._ensure_arm_nodes()
+        self._write_clock_note()
         self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
         self._write_refined()
         last = solved.view.num_states - 1
@@ -342,11 +350,29 @@ class SceneWriter:
 
     def _start(self, first: int, last: int) -> None:
         """Play from state `first` to `last`: `first` is drawn now, as an animation's frame (the light scene)."""
-        seconds_per_state = self.panel.duration.value / max(last, 1)
-        self.animation = Animation(first, last, seconds_per_state, time.monotonic())
+        seconds = float(self.panel.duration.value)
+        offsets = state_offsets(self.noise_levels(), str(self.panel.learn.clock.value), seconds)
+        self.animation = Animation(first, last, seconds / max(last, 1), time.monotonic(), offsets)
         self._panel_written = -np.inf  # the panel shows where it starts
         self._draw_state(first)
         self._tick()
+
+    def noise_levels(self) -> np.ndarray:
+        """(S+1,) the noise level sigma of each state of the solve on screen."""
+        schedule = self.solver.model.schedule
+        return noise_levels(self.solved.view.labels, schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+
+    def _write_clock_note(self) -> None:
+        """Say on screen where the animation's time goes (the clock's spacing)."""
+        if self.solved is None:
+            return
+        sigmas = self.noise_levels()
+        clock = str(self.panel.learn.clock.value)
+        offsets = state_offsets(sigmas, clock, float(self.panel.duration.value))
+        spacing = "by noise level σ = √(1 − ᾱ_t)" if clock == CLOCK_CHOICES[0] else "evenly by step"
+        self.panel.learn.clock_note.content = (
+            f"Time spaced {spacing}, {clock_note(self.solved.view.labels, offsets, sigmas)}"
+        )
 
     def _tick(self) -> None:
         """Draw the state the animation's clock has reached, and end the animation on its last state."""

@@ -430,3 +430,19 @@ def test_a_fuzz_of_moves_sampler_changes_and_reloads_from_several_threads_ends_o
     assert app.latencies[-1][2]  # the last drawn was the newest when it finished
     assert app.worker.stats.failed == 0
     assert "Traceback" not in capfd.readouterr().err
+
+
+def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
+    from ikdp_viz.clock import noise_levels, state_offsets
+
+    app.panel.duration.value = 4.0
+    note = app.panel.learn.clock_note.content
+    assert app.panel.learn.clock.value == "noise level" and "by noise level σ" in note and "of 4.0 s" in note
+    app.toggle_play()  # play from t = T
+    animation = app.writer.animation
+    sigmas = noise_levels(app.solved.view.labels, app.solver.model.schedule.sqrt_one_minus_alphas_cumprod.numpy())
+    assert animation is not None and np.allclose(animation.offsets, state_offsets(sigmas, "noise level", 4.0))
+    app.toggle_play()  # pause
+    app.panel.learn.clock.value = "step"
+    assert "evenly by step" in app.panel.learn.clock_note.content
+    app.panel.duration.value = 0.0
