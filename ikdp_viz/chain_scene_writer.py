@@ -23,10 +23,11 @@ import viser
 
 import ikdp
 from ikdp_viz import chain_readouts
-from ikdp_viz.chain_scene import ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.panel import Panel
 from ikdp_viz.robot_meshes import light_mesh, robot_meshes
-from ikdp_viz.scene import REFINED, grid_segments, sample_colors, trail_colors, trail_until
+from ikdp_viz.scene import ACCENT_DARK, DARK, FAINT, REFINED, grid_segments, sample_colors, trail_colors, trail_until
 from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
 
 GHOST_OPACITY = 0.15  # the samples not highlighted: seen through, so the highlighted robot stays readable
@@ -245,6 +246,20 @@ class ChainSceneWriter(SceneWriter):
             node.visible = True
         self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
         self.refined_lines.visible = state == view.num_states - 1 and view.refined
+
+    def legend_entries(self) -> list[Entry]:
+        """What each colour of the 3-D scene means, for the panel's legend."""
+        return [
+            Entry(Swatch(ACCENT_DARK), "highlighted robot (opaque), at the step shown"),
+            Entry(Swatch(GHOST_DARK, faint=GHOST_FAINT), "the other robots (see-through), t = T → 0"),
+            Entry(Swatch(DARK, faint=FAINT), "skeletons: joint origins to the hand, t = T → 0"),
+            Entry(Swatch(DARK, faint=FAINT), "trail (show trail): the hands' paths"),
+            Entry(Swatch((220, 40, 40)), "hand frame of the highlighted robot: x red, y green, z blue"),
+            Entry(Swatch(ESTIMATE), "x̂0: the denoiser's guess of the final pose"),
+            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
+            Entry(Swatch(PRIOR), "poses drawn from the prior"),
+            Entry(Swatch((220, 25, 25), "cross"), "target: the gizmo's pose"),
+        ]
 
     def _solve_text(self, solved) -> str:
         request = solved.request

@@ -1,4 +1,4 @@
-"""The panel's controls that make the denoising readable: whose trail is drawn, the animation's clock."""
+"""The panel's controls that make the denoising readable: whose trail is drawn, the animation's clock, the legend."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ class LearnControls:
     trail_of: viser.GuiDropdownHandle  # the highlighted sample's trail (the paper's figure) or every sample's
     clock: viser.GuiDropdownHandle  # the animation's time spaced by noise level or by step
     clock_note: viser.GuiMarkdownHandle  # where the animation's time goes, said on screen
+    legend: viser.GuiHtmlHandle  # what each colour means (legend.py; written by the scene writer)
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
@@ -32,3 +33,8 @@ def build_clock(gui: viser.GuiApi) -> tuple[viser.GuiDropdownHandle, viser.GuiMa
         "the animation dwells where the poses form; step: every step the same time",
     )  # fmt: skip
     return clock, gui.add_markdown("")
+
+
+def build_legend(gui: viser.GuiApi) -> viser.GuiHtmlHandle:
+    with gui.add_folder("Legend"):
+        return gui.add_html("")

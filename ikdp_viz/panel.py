@@ -14,7 +14,7 @@ import viser
 import viser.uplot
 
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.learn_panel import LearnControls, build_clock, build_trail_of
+from ikdp_viz.learn_panel import LearnControls, build_clock, build_legend, build_trail_of
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -116,6 +116,7 @@ def build_panel(
             hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
         )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+    legend = build_legend(gui)
     joint_space = build_joint_space_controls(gui)
     with gui.add_folder("Sampling"):
         samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
@@ -160,7 +161,7 @@ def build_panel(
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
-    learn = LearnControls(trail_of, clock, clock_note)
+    learn = LearnControls(trail_of, clock, clock_note, legend)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,

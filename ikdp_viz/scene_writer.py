@@ -26,11 +26,16 @@ import viser
 import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
-from ikdp_viz.emphasis import emphasis_colors, estimate_rows, follows_one, trail_rows
+from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
+from ikdp_viz.legend import Entry, Swatch, legend_html
 from ikdp_viz.panel import Panel, highlight_index, plot_scales
 from ikdp_viz.scene import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
     ARM_LIFT,
+    DARK,
+    FAINT,
     HIGHLIGHT_LIFT,
     REFINED,
     REFINED_LIFT,
@@ -196,6 +201,7 @@ class SceneWriter:
         # them, 27-29 without (docs/VIZ.md)
         server.scene.configure_default_lights(cast_shadow=False)
         self._build_static_scene()  # before any thread exists: the app's constructor is the only writer yet
+        self._write_legend()
 
     # -------------------------------------------------------------- the queue
 
@@ -271,6 +277,7 @@ class SceneWriter:
                 self._replay_target = None
                 self._play_from_start(user=False)
         elif isinstance(message, Redraw):
+            self._write_legend()
             if self.solved is not None:
                 self._write_clock_note()
                 self._recolor()
@@ -361,6 +368,28 @@ class SceneWriter:
         """(S+1,) the noise level sigma of each state of the solve on screen."""
         schedule = self.solver.model.schedule
         return noise_levels(self.solved.view.labels, schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+
+    def legend_entries(self) -> list[Entry]:
+        """What each colour of the planar scene means, for the panel's legend."""
+        if follows_one(self.trail_of):
+            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0")
+            others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)")
+        else:
+            trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0")
+            others = Entry(Swatch(DARK, faint=FAINT), "the other samples")
+        return [
+            trail,
+            Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown"),
+            others,
+            Entry(Swatch(TIP_DARK, "dot"), "tips"),
+            Entry(Swatch(ESTIMATE), "x̂0: the denoiser's guess of the final pose"),
+            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
+            Entry(Swatch(PRIOR), "poses drawn from the prior"),
+            Entry(Swatch(TARGET_RED, "cross"), "target"),
+        ]
+
+    def _write_legend(self) -> None:
+        self.panel.learn.legend.content = legend_html(self.legend_entries())
 
     def _write_clock_note(self) -> None:
         """Say on screen where the animation's time goes (the clock's spacing)."""

@@ -446,3 +446,17 @@ def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
     app.panel.learn.clock.value = "step"
     assert "evenly by step" in app.panel.learn.clock_note.content
     app.panel.duration.value = 0.0
+
+
+def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
+    from ikdp_viz.legend import css
+    from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK
+    from ikdp_viz.scene_writer import ESTIMATE, PRIOR, TARGET_RED
+
+    legend = app.panel.learn.legend.content
+    for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
+        assert css(color) in legend  # each colour of the scene has its swatch
+    for words in ("trail of the highlighted sample", "x̂0", "refined", "prior", "tips", "target"):
+        assert words in legend
+    app.panel.learn.trail_of.value = "all samples"
+    assert "trails of all samples" in app.panel.learn.legend.content

@@ -153,3 +153,8 @@ def test_a_pause_draws_the_state_in_full_again(app):
                               writer.mesh_offsets)  # fmt: skip
     np.testing.assert_allclose(writer.ghosts[2].batched_positions[0], positions[2], atol=1e-5)  # at the paused state
     assert len(writer.trail.points) == (app.state + 1) * K  # the whole trail up to the state
+
+
+def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
+    legend = app.panel.learn.legend.content
+    assert "highlighted robot" in legend and "skeletons" in legend and "hand frame" in legend and "x̂0" in legend
