@@ -212,6 +212,7 @@ class VizApp:
             toggle.on_update(lambda event: self._post(event, Redraw()))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.export_button.on_click(self._on_export)
+        panel.learn.share.on_click(self._on_share)
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
         for handle in (panel.steps, panel.refine_steps):
@@ -267,6 +268,30 @@ class VizApp:
         with tempfile.TemporaryDirectory() as folder:
             for path in self.export(Path(folder)):
                 event.client.send_file_download(path.name, path.read_bytes())
+
+    def share(self) -> tuple[str, str]:
+        """The solve on screen as one self-contained HTML page (record.py) with the panel's view: (file name, page)."""
+        from ikdp_viz.record import RecordSettings, file_name, record_html
+
+        done: list = []
+        self.writer.post(Call(lambda writer: done.append(writer.solved)))
+        self.writer.flush()
+        solved = done[0]  # read on the writer's thread: the solve on screen
+        if solved is None:
+            raise ValueError("share: nothing solved yet")
+        return file_name(solved), record_html(solved, RecordSettings.from_panel(self.panel))
+
+    def _on_share(self, event: viser.GuiEvent) -> None:
+        """Record the solve on screen and send the page to the tab that asked; the button says while it works."""
+        if event.client is None or self.solved is None:
+            return
+        button = self.panel.learn.share
+        label, button.label, button.disabled = button.label, "Recording the denoising...", True
+        try:
+            name, page = self.share()
+            event.client.send_file_download(name, page.encode("utf-8"), save_immediately=True)
+        finally:
+            button.label, button.disabled = label, False
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))

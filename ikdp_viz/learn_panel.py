@@ -1,4 +1,4 @@
-"""The panel's controls that make the denoising readable: whose trail is drawn, the animation's clock, the legend."""
+"""The panel's controls that make the denoising readable: whose trail, the clock, the legend, sharing a solve."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ class LearnControls:
     clock: viser.GuiDropdownHandle  # the animation's time spaced by noise level or by step
     clock_note: viser.GuiMarkdownHandle  # where the animation's time goes, said on screen
     legend: viser.GuiHtmlHandle  # what each colour means (legend.py; written by the scene writer)
+    share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
@@ -38,3 +39,11 @@ def build_clock(gui: viser.GuiApi) -> tuple[viser.GuiDropdownHandle, viser.GuiMa
 def build_legend(gui: viser.GuiApi) -> viser.GuiHtmlHandle:
     with gui.add_folder("Legend"):
         return gui.add_html("")
+
+
+def build_share_button(gui: viser.GuiApi) -> viser.GuiButtonHandle:
+    return gui.add_button(
+        "Share this denoising (HTML)", icon=viser.Icon.SHARE,
+        hint="One HTML file of the solve on screen, playable and scrubbable in any browser with no server: "
+        "for a web page or a lecture",
+    )  # fmt: skip

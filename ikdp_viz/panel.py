@@ -14,7 +14,7 @@ import viser
 import viser.uplot
 
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.learn_panel import LearnControls, build_clock, build_legend, build_trail_of
+from ikdp_viz.learn_panel import LearnControls, build_clock, build_legend, build_share_button, build_trail_of
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -158,10 +158,11 @@ def build_panel(
             "Export GIF + PNG", icon=viser.Icon.DOWNLOAD,
             hint="The denoising as a GIF and the trail figure as a PNG, downloaded by this tab",
         )  # fmt: skip
+        share = build_share_button(gui)
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
-    learn = LearnControls(trail_of, clock, clock_note, legend)
+    learn = LearnControls(trail_of, clock, clock_note, legend, share)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,

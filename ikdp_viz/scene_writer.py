@@ -326,6 +326,24 @@ class SceneWriter:
             self._draw_state(last)
         self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
 
+    def draw_recorded_state(self, solved: Solved, state: int) -> None:
+        """Draw `state` of `solved` in full on the calling thread, without the panel: a frame of a recording.
+
+        Only for a writer of its own, never started (record.py drives one on a private server):
+        a started writer's thread must stay the only one that writes its scene.
+        """
+        if self._thread is not None:
+            raise RuntimeError(
+                "draw_recorded_state: this writer's thread draws its scene; record on a writer of its own"
+            )
+        if self.solved is not solved:
+            self.solved, self.animation = solved, None
+            self._recolor()
+            self._ensure_arm_nodes()
+            self._write_refined()
+        self.state = int(np.clip(state, 0, solved.view.num_states - 1))
+        self._draw_arms(solved, self.state, self.highlight_index())
+
     def _show_prior(self, joints: np.ndarray) -> None:
         if self.prior_lines is not None:
             self.prior_lines.remove()
