@@ -35,7 +35,7 @@ class VizConfig:
     device: str = "cpu"  # torch device the model runs on: cpu, cuda, cuda:1, ...
     target: tuple[float, float] | None = None  # X Y of the first target (None: up and to the right); for bug reports
     samples: int = 16  # samples K, 1 to 64
-    sampler: str | None = None  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m (None: ddpm; dpmpp2m for a robot)
+    sampler: str | None = None  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m (None: ddpm)
     steps: int | None = None  # reverse steps of a sampler that can skip some, not ddpm (None: 20; 10 for a robot)
     seed: int = 0  # sampling seed
     refine_steps: int = 0  # damped-least-squares steps after sampling; 0: none

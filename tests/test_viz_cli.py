@@ -138,7 +138,7 @@ def test_the_flags_open_the_viewer_on_a_given_target_with_given_settings(tiny_ch
         assert (request.sampler, request.steps, request.seed, request.refine_steps) == ("ddim", 4, 3, 2)
 
 
-def test_without_sampler_flags_a_planar_model_uses_ddpm_and_a_robot_ten_dpm_solver_steps(
+def test_without_sampler_flags_planar_and_robot_models_open_on_ddpm_the_setting_with_good_poses(
     tiny_checkpoint, tiny_chain_checkpoint
 ):
     from viz_helpers import running_app, settle
@@ -146,7 +146,7 @@ def test_without_sampler_flags_a_planar_model_uses_ddpm_and_a_robot_ten_dpm_solv
     import ikdp
     from ikdp_viz.__main__ import VizConfig, apply_settings
 
-    for checkpoint, expected in ((tiny_checkpoint, ("ddpm", None)), (tiny_chain_checkpoint, ("dpmpp2m", 10))):
+    for checkpoint, expected in ((tiny_checkpoint, ("ddpm", None)), (tiny_chain_checkpoint, ("ddpm", None))):
         with running_app(ikdp.load(checkpoint), solve_now=False, animation_seconds=0.0) as app:
             apply_settings(app, VizConfig(samples=2))
             settle(app)
