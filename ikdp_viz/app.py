@@ -44,6 +44,7 @@ from ikdp_viz.scene_writer import (
 from ikdp_viz.session import Session, initial_target
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
+from ikdp_viz.typed_target import target_from_numbers
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
 SCENE_WRITERS = {"planar": SceneWriter, "chain": ChainSceneWriter}  # how each arm kind is drawn
@@ -213,6 +214,7 @@ class VizApp:
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.export_button.on_click(self._on_export)
         panel.learn.share.on_click(self._on_share)
+        panel.learn.target.go.on_click(lambda _: self.move_typed_target())
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
         for handle in (panel.steps, panel.refine_steps):
@@ -268,6 +270,24 @@ class VizApp:
         with tempfile.TemporaryDirectory() as folder:
             for path in self.export(Path(folder)):
                 event.client.send_file_download(path.name, path.read_bytes())
+
+    def move_typed_target(self) -> int | None:
+        """Solve the target typed in the panel's Target folder (pulled into the workspace as a drag would be)."""
+        inputs, arm = self.panel.learn.target, self.solver.arm
+        kind = arm_kind(self.solver).name
+        if kind == "planar":
+            values = tuple(inputs.xy.value)
+        else:
+            position = tuple(float(value) / 1000 for value in inputs.position_mm.value)
+            values = position + (tuple(inputs.rotation_deg.value) if arm.target_dim == 7 else ())
+        try:
+            point = target_from_numbers(
+                values, kind=kind, target_dim=getattr(arm, "target_dim", 2), current=self.target
+            )
+        except ValueError as error:
+            self.panel.target_text.content = f"**Not a target** {error}"
+            return None
+        return self.move_target(point)
 
     def share(self) -> tuple[str, str]:
         """The solve on screen as one self-contained HTML page (record.py) with the panel's view: (file name, page)."""

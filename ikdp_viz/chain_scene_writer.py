@@ -39,6 +39,7 @@ from ikdp_viz.scene import (
     trail_until,
 )
 from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
+from ikdp_viz.typed_target import roll_pitch_yaw_degrees
 
 HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
 # darkens a mesh and the Panda's links are near black in their own shadows
@@ -265,6 +266,14 @@ class ChainSceneWriter(SceneWriter):
             node.visible = True
         self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
         self.refined_lines.visible = state == view.num_states - 1 and view.refined
+
+    def write_target_inputs(self, target: np.ndarray) -> None:
+        """The typed-target fields show the target solved: position in mm, rotation as roll pitch yaw in degrees."""
+        inputs = self.panel.learn.target
+        inputs.show_for("chain", len(target))
+        inputs.position_mm.value = tuple(round(1000 * float(value), 1) for value in target[:3])
+        if len(target) == 7:
+            inputs.rotation_deg.value = tuple(round(float(value), 1) for value in roll_pitch_yaw_degrees(target[3:7]))
 
     def legend_entries(self) -> list[Entry]:
         """What each colour of the 3-D scene means, for the panel's legend."""

@@ -11,12 +11,29 @@ from ikdp_viz.emphasis import TRAIL_CHOICES
 
 
 @dataclass
+class TargetInputs:
+    """The target typed in the Target folder: x, y for a planar arm; a robot's position and rotation."""
+
+    xy: viser.GuiVector2Handle  # planar arm only
+    position_mm: viser.GuiVector3Handle  # a robot's hand position, millimetres
+    rotation_deg: viser.GuiVector3Handle  # and its rotation, roll pitch yaw in degrees (pose models)
+    go: viser.GuiButtonHandle  # solve the typed target
+
+    def show_for(self, kind: str, target_dim: int) -> None:
+        """Offer the fields of an arm of `kind` ("planar" or "chain"); rotation only for pose targets."""
+        self.xy.visible = kind == "planar"
+        self.position_mm.visible = kind != "planar"
+        self.rotation_deg.visible = kind != "planar" and target_dim == 7
+
+
+@dataclass
 class LearnControls:
     trail_of: viser.GuiDropdownHandle  # the highlighted sample's trail (the paper's figure) or every sample's
     clock: viser.GuiDropdownHandle  # the animation's time spaced by noise level or by step
     clock_note: viser.GuiMarkdownHandle  # where the animation's time goes, said on screen
     legend: viser.GuiHtmlHandle  # what each colour means (legend.py; written by the scene writer)
     share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
+    target: TargetInputs  # the target typed in the panel
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
@@ -47,3 +64,14 @@ def build_share_button(gui: viser.GuiApi) -> viser.GuiButtonHandle:
         hint="One HTML file of the solve on screen, playable and scrubbable in any browser with no server: "
         "for a web page or a lecture",
     )  # fmt: skip
+
+
+def build_target_inputs(gui: viser.GuiApi) -> TargetInputs:
+    xy = gui.add_vector2("x, y", (0.0, 0.0), step=0.01, hint="Type a target and press 'Solve this target'")
+    position = gui.add_vector3("x, y, z (mm)", (0.0, 0.0, 0.0), step=1.0, visible=False, hint="The hand's position")
+    rotation = gui.add_vector3(
+        "roll, pitch, yaw (°)", (0.0, 0.0, 0.0), step=1.0, visible=False,
+        hint="The hand's rotation: about x, then y, then z, in degrees",
+    )  # fmt: skip
+    go = gui.add_button("Solve this target", icon=viser.Icon.TARGET)
+    return TargetInputs(xy, position, rotation, go)

@@ -14,7 +14,14 @@ import viser
 import viser.uplot
 
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.learn_panel import LearnControls, build_clock, build_legend, build_share_button, build_trail_of
+from ikdp_viz.learn_panel import (
+    LearnControls,
+    build_clock,
+    build_legend,
+    build_share_button,
+    build_target_inputs,
+    build_trail_of,
+)
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -91,6 +98,7 @@ def build_panel(
     gui.main_panel.dock_right()
     with gui.add_folder("Target"):
         target_text = gui.add_markdown("")
+        target_inputs = build_target_inputs(gui)
     with gui.add_folder("Denoising"):
         timestep = gui.add_slider(
             "timestep t", min=0, max=num_timesteps, step=1, initial_value=num_timesteps,
@@ -162,7 +170,7 @@ def build_panel(
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
-    learn = LearnControls(trail_of, clock, clock_note, legend, share)
+    learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,

@@ -202,6 +202,7 @@ class SceneWriter:
         server.scene.configure_default_lights(cast_shadow=False)
         self._build_static_scene()  # before any thread exists: the app's constructor is the only writer yet
         self._write_legend()
+        self.write_target_inputs(self.target)
 
     # -------------------------------------------------------------- the queue
 
@@ -312,6 +313,7 @@ class SceneWriter:
         self._recolor()
         self._ensure_arm_nodes()
         self._write_clock_note()
+        self.write_target_inputs(solved.request.target)
         self.panel.plot.scales = plot_scales(self.solver.timesteps, *readouts.error_range(solved.view.tip_error))
         self._write_refined()
         last = solved.view.num_states - 1
@@ -386,6 +388,12 @@ class SceneWriter:
         """(S+1,) the noise level sigma of each state of the solve on screen."""
         schedule = self.solver.model.schedule
         return noise_levels(self.solved.view.labels, schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+
+    def write_target_inputs(self, target: np.ndarray) -> None:
+        """The typed-target fields show the target solved (so a small change is one edit away)."""
+        inputs = self.panel.learn.target
+        inputs.show_for("planar", 2)
+        inputs.xy.value = tuple(round(float(value), 3) for value in target[:2])
 
     def legend_entries(self) -> list[Entry]:
         """What each colour of the planar scene means, for the panel's legend."""

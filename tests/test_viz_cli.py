@@ -74,6 +74,7 @@ def test_help_lists_every_option_once_with_its_one_default():
         (("--host", "no.such.host.invalid", "--port", "0"), "--host no.such.host.invalid: cannot listen there"),
         (("--sampler", "euler"), "--sampler euler: expected one of ddpm, ddim, dpmpp2m"),
         (("--samples", "0"), "--samples 0: expected 1 to 64"),
+        (("--target", "1", "2", "3"), "--target 1 2 3: target: a planar arm's target is x y, got 3 numbers"),
     ],
 )
 def test_a_bad_port_or_host_is_one_line_and_exit_status_2(arguments, reason):
