@@ -215,6 +215,7 @@ class VizApp:
         panel.export_button.on_click(self._on_export)
         panel.learn.share.on_click(self._on_share)
         panel.learn.target.go.on_click(lambda _: self.move_typed_target())
+        panel.learn.compare.on_update(lambda _: self.request_solve())
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
         for handle in (panel.steps, panel.refine_steps):

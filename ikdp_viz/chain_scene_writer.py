@@ -71,6 +71,7 @@ class ChainSceneWriter(SceneWriter):
         # Off at start: near t = T the hands jump across the whole reach ball, and their paths cage the robots.
         panel.show_trail.value = False
         panel.joint_space.folder.visible = False  # the joint space view draws planar arms only
+        panel.learn.compare.visible = False  # and so does the comparison of two samplers (compare.py)
 
     # -------------------------------------------------------------- static scene
 

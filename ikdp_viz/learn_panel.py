@@ -34,6 +34,7 @@ class LearnControls:
     legend: viser.GuiHtmlHandle  # what each colour means (legend.py; written by the scene writer)
     share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
     target: TargetInputs  # the target typed in the panel
+    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare.py)
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
@@ -75,3 +76,14 @@ def build_target_inputs(gui: viser.GuiApi) -> TargetInputs:
     )  # fmt: skip
     go = gui.add_button("Solve this target", icon=viser.Icon.TARGET)
     return TargetInputs(xy, position, rotation, go)
+
+
+COMPARE_CHOICES = ("off", "ddim", "dpmpp2m", "ddpm")  # the "compare with" dropdown: off, or a sampler
+
+
+def build_compare(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
+    return gui.add_dropdown(
+        "compare with", COMPARE_CHOICES, initial_value="off",
+        hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn at the left with its own "
+        "trail; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ follow the deterministic ODE",
+    )  # fmt: skip

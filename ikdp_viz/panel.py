@@ -17,6 +17,7 @@ from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_con
 from ikdp_viz.learn_panel import (
     LearnControls,
     build_clock,
+    build_compare,
     build_legend,
     build_share_button,
     build_target_inputs,
@@ -133,6 +134,7 @@ def build_panel(
             hint="best: the smallest tip error at t = 0 (of the refined pose when refine is on); samples count from 1",
         )  # fmt: skip
         sampler = gui.add_dropdown("sampler", sampler_names, initial_value=sampler_names[0])
+        compare = build_compare(gui)
         steps = gui.add_slider(
             "steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_STEPS, num_timesteps),
             disabled=True, hint="Reverse steps of a sampler that can skip some; DDPM always takes all T",
@@ -170,7 +172,7 @@ def build_panel(
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
-    learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs)
+    learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs, compare)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,

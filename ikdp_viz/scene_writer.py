@@ -26,6 +26,7 @@ import viser
 import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
+from ikdp_viz.compare import CompareNodes, compare_curve
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.legend import Entry, Swatch, legend_html
@@ -64,6 +65,7 @@ LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
+COMPARE_STROKE = "#2a9d5c"  # the chart's line of the compared sampler
 PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
 
@@ -195,6 +197,9 @@ class SceneWriter:
         self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self._static_nodes: list = []
         self.joint_space = JointSpaceNodes(server, panel.joint_space, camera_fit)  # the torus beside the arm
+        self.compare = CompareNodes(server, camera_fit)  # a second sampler from the same noise, beside the arm
+        self._chart_series = tuple(panel.plot.series)  # the chart's own series; a comparison adds one
+        self._chart_compared: str | None = None  # the sampler whose curve the chart shows besides, if any
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
         # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
@@ -463,6 +468,7 @@ class SceneWriter:
         self.solver, self.solved, self.target = message.solver, None, message.target
         self._remove_arm_nodes()
         self.joint_space.reset()
+        self.compare.remove()
         self._build_static_scene()
         num_timesteps = message.solver.timesteps
         self.panel.timestep.max = num_timesteps
@@ -513,7 +519,15 @@ class SceneWriter:
         """The slider, the chart's dot and the readouts at the state on screen; `now` is when (time.monotonic())."""
         view, highlight = self.solved.view, self.highlight_index()
         self.panel.timestep.value = int(view.labels[self.state])  # the app ignores slider updates with no client
-        self.panel.plot.data = error_curves(view, highlight, self.state)
+        data = error_curves(view, highlight, self.state)
+        compared = self.solved.request.compare_sampler if self.solved.compare is not None else None
+        if compared is not None:
+            data = (*data, compare_curve(view, self.solved.compare, highlight))
+        if compared != self._chart_compared:  # the series first: uPlot draws one column per series
+            extra = () if compared is None else (viser.uplot.Series(label=compared, stroke=COMPARE_STROKE, width=2),)
+            self.panel.plot.series = (*self._chart_series, *extra)
+            self._chart_compared = compared
+        self.panel.plot.data = data
         self._write_readouts()
         self._panel_written = now
 
@@ -559,6 +573,10 @@ class SceneWriter:
         self.refined_lines.visible = final_shown
         self.refined_tips.visible = final_shown
         self.joint_space.draw(self.solver, solved, state, colors, highlight)
+        self.compare.draw(
+            self.solver, solved, state, highlight, self.trail_of, show_trail=self.panel.show_trail.value,
+            sizes=self.sizes,
+        )  # fmt: skip
 
     def animating(self, state: int) -> bool:
         """`state` is drawn as a frame of a playing animation, not its last: draw the light version of the scene.

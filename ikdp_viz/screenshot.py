@@ -62,6 +62,7 @@ class ScreenshotConfig:
     timestep: int | None = None  # the step shown (None: t = 0, the final pose)
     refine_steps: int = 0  # tick "refine" with this many steps (0: off)
     sampler: str | None = None  # the panel's sampler (None: the model's default)
+    compare: str = "off"  # "compare with": off, ddim, dpmpp2m, ddpm
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -97,6 +98,7 @@ def main(argv: list[str] | None = None) -> None:
     app.panel.learn.trail_of.value = args.trail_of
     app.panel.show_estimate.value = args.show_estimate
     app.panel.joint_space.show.value = args.joint_space
+    app.panel.learn.compare.value = args.compare
     if args.sampler is not None:
         app.panel.sampler.value = args.sampler
     if args.refine_steps:
