@@ -191,6 +191,7 @@ class SceneWriter:
         self._thread: threading.Thread | None = None  # started by the first post(), not at construction
         self._thread_lock = threading.Lock()
         self.nodes_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
+        self._joint_scales_key: tuple | None = None  # what the joints' scales were written for
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
         self.trail = self.links = self.joints = self.tips = None
@@ -564,7 +565,11 @@ class SceneWriter:
         link_colors = line_colors(np.repeat(colors, num_links, axis=0))[:, None]  # as dark as the joints
         self.links.colors = np.broadcast_to(link_colors, (num_samples * num_links, 2, 3))
         self.joints.batched_positions = placement.joint_positions
-        self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
+        joint_colors = colors
+        if follows_one(self.trail_of):  # only the followed sample's joints show, in one colour: a constant array,
+            joint_colors = np.broadcast_to(colors[highlight], colors.shape)  # which viser does not send again
+        self.joints.batched_colors = np.repeat(joint_colors, num_links + 1, axis=0)
+        self._write_joint_scales(num_samples, num_links, highlight)
         self.tips.batched_positions = placement.tip_positions
         self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
         for node in (self.links, self.joints, self.tips):
@@ -577,6 +582,19 @@ class SceneWriter:
             self.solver, solved, state, highlight, self.trail_of, show_trail=self.panel.show_trail.value,
             sizes=self.sizes,
         )  # fmt: skip
+
+    def _write_joint_scales(self, num_samples: int, num_links: int, highlight: int) -> None:
+        """Following one sample, only its joints are drawn (the others are light lines): fewer spheres for the page
+        to draw in every frame (docs/VIZ.md); written only when the followed sample or the setting changes."""
+        key = (num_samples, num_links, highlight, follows_one(self.trail_of))
+        if key == self._joint_scales_key:
+            return
+        per_sample = np.ones(num_samples, np.float32)
+        if follows_one(self.trail_of):
+            per_sample[:] = 0.0
+            per_sample[highlight] = 1.0
+        self.joints.batched_scales = np.repeat(per_sample, num_links + 1)
+        self._joint_scales_key = key
 
     def animating(self, state: int) -> bool:
         """`state` is drawn as a frame of a playing animation, not its last: draw the light version of the scene.
@@ -713,6 +731,7 @@ class SceneWriter:
             batched_colors=np.zeros((num_samples, 3), np.uint8), **spheres,
         )  # fmt: skip
         self.nodes_shape = shape
+        self._joint_scales_key = None  # a new node: all its joints drawn
 
     def _write_refined(self) -> None:
         view = self.solved.view

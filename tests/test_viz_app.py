@@ -152,11 +152,17 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
     assert np.allclose(per_state[:, :, 0], view.joints[:, highlight, :-1], atol=1e-5)
     brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
     assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
-    # the others' final poses light, the highlighted one dark
-    joint_colors = app.joints.batched_colors.reshape(num_samples, num_links + 1, 3).astype(int)
-    others = np.delete(joint_colors[:, 0], highlight, axis=0)
-    assert (others.min(axis=1) >= 150).all()  # light grey
-    assert joint_colors[highlight, 0].sum() < others.sum(axis=1).min() - 200  # far darker
+    # the others' final poses light lines, the highlighted one dark blue with its joints; the others' joints not drawn
+    from ikdp_viz.emphasis import OTHERS_FINAL
+    from ikdp_viz.scene import ACCENT_DARK, line_colors
+
+    link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]
+    others = np.delete(link_colors, highlight, axis=0)
+    assert (others == line_colors(np.array(OTHERS_FINAL, np.uint8))).all()  # light grey (185)
+    assert (link_colors[highlight] == line_colors(np.array(ACCENT_DARK, np.uint8))).all()
+    scales = app.joints.batched_scales.reshape(num_samples, num_links + 1)
+    assert (scales[highlight] == 1).all() and (np.delete(scales, highlight, axis=0) == 0).all()
+    assert (app.joints.batched_colors.reshape(num_samples, -1, 3)[highlight] == ACCENT_DARK).all()
     # x̂0 of the followed sample only; all of them with "all samples"
     app.panel.show_estimate.value = True
     app.panel.timestep.value = 10
@@ -164,6 +170,7 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
     app.panel.learn.trail_of.value = "all samples"
     assert app.estimate_lines.points.shape[0] == num_samples * num_links
     assert app.trail.points.shape[0] == (app.state + 1) * num_samples * num_links
+    assert (app.joints.batched_scales == 1).all()  # every sample's joints again
 
 
 def test_samples_and_highlight_change_what_is_drawn(app):
