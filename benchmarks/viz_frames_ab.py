@@ -37,6 +37,7 @@ class AbConfig:
     repeats: int = 2  # animations per run (the run's median)
     seconds: float = 4.0  # the animation's duration
     samples: int = 16  # K
+    views: tuple[str, ...] = tuple(VIEWS)  # which of "before", "default", "full trail" to measure
     chromium: str = "/usr/bin/chromium"
     output: Path = field(default=HERE / "benchmarks" / "results" / "viz_frames_ab.json")
 
@@ -124,10 +125,11 @@ def main() -> None:
         return
     config = tyro.cli(AbConfig)
     trees = {"base": config.base.resolve(), "this": HERE}
-    runs: dict[str, list[dict]] = {view: [] for view in VIEWS}
+    runs: dict[str, list[dict]] = {view: [] for view in config.views}
     loads = []
     for round_number in range(config.rounds):
-        for view, (tree, trail_of) in VIEWS.items():
+        for view in config.views:
+            tree, trail_of = VIEWS[view]
             environment = {**os.environ, "PYTHONPATH": str(trees[tree]), "OMP_NUM_THREADS": "1"}
             command = [sys.executable, __file__, "--child", trail_of or "-", str(config.samples), str(config.seconds),
                        str(config.repeats), config.chromium]  # fmt: skip

@@ -65,6 +65,7 @@ LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_FOLLOWED_STATES = 12  # the same for the one sample followed (the default picture)
 COMPARE_STROKE = "#2a9d5c"  # the chart's line of the compared sampler
 PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
@@ -610,9 +611,13 @@ class SceneWriter:
     def trail_states_limit(self, state: int) -> int | None:
         """How many states the trail may show at `state`: few while an animation plays, all (None) at its end.
 
-        One sample's whole trail (81 states of N links) costs the page little: it is drawn in full.
+        Following one sample, 12 of its states: its whole trail (81 states of N links, 324 segments at
+        N = 4) cost the playing page about 10 ms a frame here (15.1 against 17.9 frames/s with 6 states,
+        benchmarks/viz_frames_ab.py under load 5).
         """
-        return PLAYING_TRAIL_STATES if self.animating(state) and not follows_one(self.trail_of) else None
+        if not self.animating(state):
+            return None
+        return PLAYING_FOLLOWED_STATES if follows_one(self.trail_of) else PLAYING_TRAIL_STATES
 
     def _write_play_label(self) -> None:
         playing = self.animation is not None
