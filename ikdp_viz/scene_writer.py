@@ -51,6 +51,7 @@ from ikdp_viz.scene import (
     line_colors,
     nearest_state,
     polyline_segments,
+    sample_colors,
     trail_colors,
     trail_until,
 )
@@ -485,6 +486,8 @@ class SceneWriter:
         view = self.solved.view
         self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, self.highlight_index(), self.trail_of)
         self._trail_colors = trail_colors(ramp, view.num_links)
+        # the joint-space dots: every sample as dark as in "all samples", or light grey dots vanish on the square
+        self._dot_colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
 
     @property
     def trail_of(self) -> str:
@@ -578,7 +581,7 @@ class SceneWriter:
         final_shown = state == view.num_states - 1 and view.refined
         self.refined_lines.visible = final_shown
         self.refined_tips.visible = final_shown
-        self.joint_space.draw(self.solver, solved, state, colors, highlight)
+        self.joint_space.draw(self.solver, solved, state, self._dot_colors[state], highlight)
         self.compare.draw(
             self.solver, solved, state, highlight, self.trail_of, show_trail=self.panel.show_trail.value,
             sizes=self.sizes,

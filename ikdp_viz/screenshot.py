@@ -63,12 +63,35 @@ class ScreenshotConfig:
     refine_steps: int = 0  # tick "refine" with this many steps (0: off)
     sampler: str | None = None  # the panel's sampler (None: the model's default)
     compare: str = "off"  # "compare with": off, ddim, dpmpp2m, ddpm
+    saved_page: Path | None = None  # instead: open this saved HTML page (a shared denoising) from disk, no server
+    wait: float = 6.0  # seconds a saved page plays before the picture
+
+
+def screenshot_saved_page(page_path: Path, output: Path, *, chromium: str, size: tuple[int, int], wait: float) -> None:
+    """A page saved on disk (a shared denoising, record.py) opened as file:// with no server, after `wait` s."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": size[0], "height": size[1]})
+        page.goto(Path(page_path).resolve().as_uri())
+        page.add_style_tag(content=NO_FADE_CSS)
+        with contextlib.suppress(Exception):  # the software-rendering notice covers a corner of the scene
+            page.locator(".mantine-Notification-closeButton").first.click(timeout=10_000)
+        time.sleep(wait)
+        output.parent.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(output))
+        browser.close()
 
 
 def main(argv: list[str] | None = None) -> None:
     import tyro
 
     args = tyro.cli(ScreenshotConfig, args=argv)
+    if args.saved_page is not None:
+        screenshot_saved_page(args.saved_page, args.output, chromium=args.chromium, size=args.size, wait=args.wait)
+        print(f"wrote {args.output}")
+        return
 
     import torch
     import viser
