@@ -58,3 +58,14 @@ def test_a_recording_refuses_a_zero_duration(shared):
     app, _, _ = shared
     with pytest.raises(ValueError, match="seconds"):
         record_html(app.solved, RecordSettings(seconds=0.0))
+
+
+def test_the_record_command_writes_a_page_for_a_robot(tiny_chain_checkpoint, tmp_path, capsys):
+    from ikdp_viz.record import main
+
+    output = tmp_path / "panda.html"
+    main(["--ckpt", str(tiny_chain_checkpoint), "--output", str(output), "--samples", "2", "--seconds", "1"])
+    data = recording(output.read_text(encoding="utf-8"))
+    assert data["durationSeconds"] > 1.0 and "no server needed" in capsys.readouterr().out
+    names = {message.get("name") for _, message in data["messages"]}
+    assert "/recording/target" in names and any(str(name).startswith("/samples/robot/") for name in names)
