@@ -26,7 +26,12 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-VIEWS = {"before": ("base", None), "default": ("this", None), "full trail": ("this", "all samples")}
+VIEWS = {"before": ("base", None), "default": ("this", None), "full trail": ("this", "all samples"),
+         "default, no grid": ("this", None), "default, section grid": ("this", None)}  # fmt: skip
+PROBES = {
+    "default, no grid": "no grid",
+    "default, section grid": "section grid",
+}  # a view measured with a part hidden, to see what it costs
 HERE = Path(__file__).resolve().parent.parent
 
 
@@ -37,12 +42,12 @@ class AbConfig:
     repeats: int = 2  # animations per run (the run's median)
     seconds: float = 4.0  # the animation's duration
     samples: int = 16  # K
-    views: tuple[str, ...] = tuple(VIEWS)  # which of "before", "default", "full trail" to measure
+    views: tuple[str, ...] = ("before", "default", "full trail")  # which of VIEWS to measure
     chromium: str = "/usr/bin/chromium"
     output: Path = field(default=HERE / "benchmarks" / "results" / "viz_frames_ab.json")
 
 
-def child(trail_of: str | None, samples: int, seconds: float, repeats: int, chromium: str) -> dict:
+def child(trail_of: str | None, samples: int, seconds: float, repeats: int, chromium: str, probe: str = "") -> dict:
     """One run in this process, with whichever tree is on sys.path: frames/s and messages per state."""
     import contextlib
     import io
@@ -65,6 +70,14 @@ def child(trail_of: str | None, samples: int, seconds: float, repeats: int, chro
         app.panel.learn.trail_of.value = trail_of
     app.move_target(app.target)
     assert app.wait_until_still(120)
+    grid = app.writer._static_nodes[0]  # the ground grid, the first static node
+    if probe == "no grid":
+        grid.visible = False
+    elif probe == "section grid":  # its lines every mean bone length only, not every half
+        from ikdp_viz.scene_writer import GRID_SECTION
+
+        sections = (grid.colors[:, 0] == GRID_SECTION).all(axis=-1)
+        grid.points, grid.colors = grid.points[sections], grid.colors[sections]
     sent = {"messages": 0, "bytes": 0}
     websock = server._websock_server
     queue = websock.queue_message
@@ -121,7 +134,8 @@ def main() -> None:
     if sys.argv[1:2] == ["--child"]:
         trail_of = None if sys.argv[2] == "-" else sys.argv[2]
         samples, seconds, repeats, chromium = int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
-        print("RESULT " + json.dumps(child(trail_of, samples, seconds, repeats, chromium)), flush=True)
+        probe = sys.argv[7] if len(sys.argv) > 7 else ""
+        print("RESULT " + json.dumps(child(trail_of, samples, seconds, repeats, chromium, probe)), flush=True)
         return
     config = tyro.cli(AbConfig)
     trees = {"base": config.base.resolve(), "this": HERE}
@@ -132,7 +146,7 @@ def main() -> None:
             tree, trail_of = VIEWS[view]
             environment = {**os.environ, "PYTHONPATH": str(trees[tree]), "OMP_NUM_THREADS": "1"}
             command = [sys.executable, __file__, "--child", trail_of or "-", str(config.samples), str(config.seconds),
-                       str(config.repeats), config.chromium]  # fmt: skip
+                       str(config.repeats), config.chromium, PROBES.get(view, "")]  # fmt: skip
             output = subprocess.run(command, env=environment, cwd=trees[tree], capture_output=True, text=True)
             line = next((line for line in output.stdout.splitlines() if line.startswith("RESULT ")), None)
             if line is None:
