@@ -53,3 +53,23 @@ def test_the_shared_html_plays_from_disk_with_no_server_and_shows_the_arm(browse
         assert all(url.split(":", 1)[0] in {"file", "data", "blob"} for url in fetched), fetched  # no server
     finally:
         page.close()
+
+
+def test_the_share_button_downloads_the_page_to_the_tab_that_clicked(browser, tiny_checkpoint, tmp_path):
+    from viz_helpers import open_page_collecting_errors
+
+    with running_app(ikdp.load(tiny_checkpoint), animation_seconds=0.0, target=(1.2, 0.6)) as app:
+        settle(app)
+        page, errors = open_page_collecting_errors(browser, app, height=1600)
+        try:
+            with page.expect_download(timeout=BROWSER_TIMEOUT * 1000) as download:
+                page.get_by_role("button", name="Share this denoising (HTML)").click()
+            saved = tmp_path / download.value.suggested_filename
+            download.value.save_as(saved)
+            assert saved.name.startswith("ikdp_ddpm_K16_seed0_") and saved.suffix == ".html"
+            text = saved.read_text(encoding="utf-8")
+            assert "window.__VISER_EMBED_DATA__=" in text and len(text) > 100_000
+            assert app.panel.learn.share.label == "Share this denoising (HTML)" and not app.panel.learn.share.disabled
+            assert not errors, errors[:3]
+        finally:
+            page.close()
