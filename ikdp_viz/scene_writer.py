@@ -196,6 +196,7 @@ class SceneWriter:
         self._joint_scales_key: tuple | None = None  # what the joints' scales were written for
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
+        self._dot_colors: np.ndarray | None = None  # (S+1, K, 3) the joint-space dots, as "all samples" colours arms
         self.trail = self.links = self.joints = self.tips = None
         self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self._static_nodes: list = []
