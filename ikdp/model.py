@@ -154,8 +154,12 @@ class IKDiffusion(nn.Module):
         return_trajectory: bool = False,
         return_estimates: bool = False,
         callback: StepCallback | None = None,
+        initial_noise: torch.Tensor | None = None,
     ) -> Trajectory:
-        """Reverse diffusion, targets: (B, target_dim) -> K = num_samples poses per target, (B, K, J)."""
+        """Reverse diffusion, targets: (B, target_dim) -> K = num_samples poses per target, (B, K, J).
+
+        `initial_noise`: x_T, (B, K, representation.dim); None draws it from `generator`.
+        """
         return run_reverse_diffusion(
             self.denoiser,
             self.schedule,
@@ -168,4 +172,5 @@ class IKDiffusion(nn.Module):
             return_trajectory=return_trajectory,
             return_estimates=return_estimates,
             callback=callback,
+            initial_noise=None if initial_noise is None else initial_noise.to(targets),
         )

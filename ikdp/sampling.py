@@ -70,11 +70,14 @@ def run_reverse_diffusion(
     return_estimates: bool = False,
     callback: StepCallback | None = None,
     conditions: torch.Tensor | None = None,
+    initial_noise: torch.Tensor | None = None,
 ) -> Trajectory:
     """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J).
 
     `conditions`: step_conditions() for these targets, when the caller computed them already
     (ikdp.cuda_graph does, outside the captured graph: they need a host-to-device copy).
+    `initial_noise`: x_T, (B, K, D) in the representation's coordinates (D = representation.dim),
+    so that two samplers can start from the same noise; None draws it from `generator`.
     """
     batch = targets.shape[0]
     rows = batch * num_samples  # M: the K samples of a target are consecutive rows
@@ -86,7 +89,13 @@ def run_reverse_diffusion(
     like = {"device": targets.device, "dtype": targets.dtype}
     states = torch.empty((steps + 1 if return_trajectory else 2, rows, dim), **like)
     estimates = torch.empty((steps, rows, dim), **like) if return_estimates else None
-    torch.randn((rows, dim), generator=generator, out=states[0])  # x_T ~ N(0, I)
+    if initial_noise is None:
+        torch.randn((rows, dim), generator=generator, out=states[0])  # x_T ~ N(0, I)
+    else:
+        if tuple(initial_noise.shape) != (batch, num_samples, dim):
+            expected = (batch, num_samples, dim)
+            raise ValueError(f"initial_noise: expected x_T of shape {expected}, got {tuple(initial_noise.shape)}")
+        states[0].copy_(initial_noise.reshape(rows, dim))
     x = states[0]
     make_workspace = getattr(denoiser, "workspace", None)
     workspace = make_workspace(rows, x) if make_workspace is not None else None

@@ -59,6 +59,11 @@ class Solver:
         return self.arm.lengths
 
     @property
+    def noise_dim(self) -> int:
+        """D, the size of one sample's noise x_T (the pose in the model's representation)."""
+        return self.model.representation.dim
+
+    @property
     def timesteps(self) -> int:
         return self.model.schedule.num_timesteps
 
@@ -79,6 +84,7 @@ class Solver:
         return_trajectory: bool = False,
         return_estimates: bool = False,
         callback: StepCallback | None = None,
+        initial_noise: torch.Tensor | None = None,
     ) -> SolveResult:
         """K poses for each of B targets, (B, target_dim) -> (B, K, J).
 
@@ -90,6 +96,10 @@ class Solver:
         `callback(step_index, timestep, state, estimate)` is called after every reverse
         step with the state and the denoiser's x̂0 as joint values (B, K, J); returning
         True stops the solve at once (`stopped` is then True and no refinement runs).
+
+        `initial_noise`: the pure noise x_T the samplers start from, (B, K, D) with D =
+        `solver.noise_dim`; the same x_T given to DDPM and to DDIM compares the two on equal
+        terms. None draws it from `generator` (as the first thing drawn).
         """
         arm = self.arm
         targets = arm.validate_targets(targets).to(self.device)
@@ -110,6 +120,7 @@ class Solver:
             return_trajectory=return_trajectory,
             return_estimates=return_estimates,
             callback=callback,
+            initial_noise=initial_noise,
         )
         raw = result.headings  # (B, K, J)
         per_sample_targets = targets[:, None].expand(-1, num_samples, -1)

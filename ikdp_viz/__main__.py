@@ -5,6 +5,7 @@
     python -m ikdp_viz --ckpt checkpoints/ikdp_panda.pt  # a robot (URDF): meshes, 6-DoF gizmo at the hand
     python -m ikdp_viz --host 0.0.0.0                    # let other machines connect
     python -m ikdp_viz --target -0.01 1.2 --seed 0 --sampler ddim --steps 10   # reproduce what you saw
+    python -m ikdp_viz --ckpt ikdp_panda --target 0.5 0.1 0.4 180 0 0   # a robot: x y z (m), roll pitch yaw (deg)
 
 A checkpoint that cannot be used, a port outside 0..65535 or a host that cannot
 be listened on is a one-line error and exit status 2;
@@ -33,9 +34,11 @@ class VizConfig:
     host: str = "127.0.0.1"  # address to listen on; 0.0.0.0 lets other machines connect
     port: int = 8080  # port to listen on; if taken, the next free one
     device: str = "cpu"  # torch device the model runs on: cpu, cuda, cuda:1, ...
-    target: tuple[float, float] | None = None  # X Y of the first target (None: up and to the right); for bug reports
+    # the first target (None: the arm's own): planar X Y; a robot X Y Z in metres, then ROLL PITCH YAW in degrees
+    # or W X Y Z (a pose model given X Y Z keeps its first rotation); to open on what you saw, for a bug report
+    target: tuple[float, ...] | None = None
     samples: int = 16  # samples K, 1 to 64
-    sampler: str | None = None  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m (None: ddpm; dpmpp2m for a robot)
+    sampler: str | None = None  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m (None: ddpm)
     steps: int | None = None  # reverse steps of a sampler that can skip some, not ddpm (None: 20; 10 for a robot)
     seed: int = 0  # sampling seed
     refine_steps: int = 0  # damped-least-squares steps after sampling; 0: none
@@ -77,7 +80,19 @@ def apply_settings(app, config: VizConfig) -> None:
     if config.refine_steps:
         panel.refine_steps.value = config.refine_steps
         panel.refine.value = True
-    app.move_target(config.target if config.target is not None else app.target)
+    app.move_target(app.target if config.target is None else config_target(app.solver, config))
+
+
+def config_target(solver, config: VizConfig):
+    """The target `--target` asks for; ValueError when its numbers do not make one for this arm."""
+    from ikdp_viz.session import initial_target
+    from ikdp_viz.typed_target import target_from_numbers
+
+    arm = solver.arm
+    return target_from_numbers(
+        config.target, kind=getattr(arm, "kind", "planar"), target_dim=getattr(arm, "target_dim", 2),
+        current=initial_target(solver),
+    )  # fmt: skip
 
 
 def fail(message: str) -> None:
@@ -133,8 +148,11 @@ def main(argv: list[str] | None = None) -> None:
     try:
         path = checkpoint_path(config.ckpt)
         solver = load_solver(path, config.device)
-        if config.target is not None and solver.arm.kind != "planar":
-            fail("--target X Y: a robot's pose target is set with the gizmo at its hand")
+        if config.target is not None:
+            try:
+                config_target(solver, config)
+            except ValueError as error:
+                fail(f"--target {' '.join(f'{value:g}' for value in config.target)}: {error}")
 
         import torch
         import viser

@@ -45,6 +45,7 @@ from ikdp_viz.scene_writer import (
 from ikdp_viz.session import Session, initial_target
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
+from ikdp_viz.typed_target import target_from_numbers
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
 SCENE_WRITERS = {"planar": SceneWriter, "chain": ChainSceneWriter}  # how each arm kind is drawn
@@ -227,10 +228,14 @@ class VizApp:
         panel.play_button.on_click(lambda event: self._post(event, TogglePlay()))
         joint_space = panel.joint_space
         for toggle in (panel.show_trail, panel.show_estimate, panel.highlight, joint_space.show, joint_space.first,
-                       joint_space.second, joint_space.grid):  # fmt: skip
+                       joint_space.second, joint_space.grid, panel.learn.trail_of,
+                       panel.learn.clock, panel.duration):  # fmt: skip
             toggle.on_update(lambda event: self._post(event, Redraw()))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.export_button.on_click(self._on_export)
+        panel.learn.share.on_click(self._on_share)
+        panel.learn.target.go.on_click(lambda _: self.move_typed_target())
+        panel.learn.compare.on_update(lambda _: self.request_solve())
         panel.samples.on_update(lambda _: self._on_samples())
         panel.sampler.on_update(lambda _: self._on_sampler())
         panel.steps.on_update(lambda _: self._on_steps())
@@ -316,6 +321,48 @@ class VizApp:
         finally:
             self._export_lock.release()
         note.loading, note.with_close_button, note.auto_close_seconds = False, True, 8.0
+
+    def move_typed_target(self) -> int | None:
+        """Solve the target typed in the panel's Target folder (pulled into the workspace as a drag would be)."""
+        inputs, arm = self.panel.learn.target, self.solver.arm
+        kind = arm_kind(self.solver).name
+        if kind == "planar":
+            values = tuple(inputs.xy.value)
+        else:
+            position = tuple(float(value) / 1000 for value in inputs.position_mm.value)
+            values = position + (tuple(inputs.rotation_deg.value) if arm.target_dim == 7 else ())
+        try:
+            point = target_from_numbers(
+                values, kind=kind, target_dim=getattr(arm, "target_dim", 2), current=self.target
+            )
+        except ValueError as error:
+            self.panel.target_text.content = f"**Not a target** {error}"
+            return None
+        return self.move_target(point)
+
+    def share(self) -> tuple[str, str]:
+        """The solve on screen as one self-contained HTML page (record.py) with the panel's view: (file name, page)."""
+        from ikdp_viz.record import RecordSettings, file_name, record_html
+
+        done: list = []
+        self.writer.post(Call(lambda writer: done.append(writer.solved)))
+        self.writer.flush()
+        solved = done[0]  # read on the writer's thread: the solve on screen
+        if solved is None:
+            raise ValueError("share: nothing solved yet")
+        return file_name(solved), record_html(solved, RecordSettings.from_panel(self.panel))
+
+    def _on_share(self, event: viser.GuiEvent) -> None:
+        """Record the solve on screen and send the page to the tab that asked; the button says while it works."""
+        if event.client is None or self.solved is None:
+            return
+        button = self.panel.learn.share
+        label, button.label, button.disabled = button.label, "Recording the denoising...", True
+        try:
+            name, page = self.share()
+            event.client.send_file_download(name, page.encode("utf-8"), save_immediately=True)
+        finally:
+            button.label, button.disabled = label, False
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))

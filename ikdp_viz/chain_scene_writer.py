@@ -23,12 +23,26 @@ import viser
 
 import ikdp
 from ikdp_viz import chain_readouts
-from ikdp_viz.chain_scene import ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
+from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.panel import Panel
 from ikdp_viz.robot_meshes import light_mesh, robot_meshes
-from ikdp_viz.scene import REFINED, grid_segments, sample_colors, trail_colors, trail_until
+from ikdp_viz.scene import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
+    DARK,
+    FAINT,
+    REFINED,
+    grid_segments,
+    trail_colors,
+    trail_until,
+)
 from ikdp_viz.scene_writer import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, SceneWriter
+from ikdp_viz.typed_target import roll_pitch_yaw_degrees
 
+HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
+# darkens a mesh and the Panda's links are near black in their own shadows
 GHOST_OPACITY = 0.15  # the samples not highlighted: seen through, so the highlighted robot stays readable
 SKELETON_PIXELS = 2.5  # the current state's skeletons, over the thinner trail
 HAND_AXES = 0.08  # hand frame's axes, in reach radii
@@ -61,6 +75,7 @@ class ChainSceneWriter(SceneWriter):
         # Off at start: near t = T the hands jump across the whole reach ball, and their paths cage the robots.
         panel.show_trail.value = False
         panel.joint_space.folder.visible = False  # the joint space view draws planar arms only
+        panel.learn.compare.visible = False  # and so does the comparison of two samplers (compare.py)
 
     # -------------------------------------------------------------- static scene
 
@@ -198,10 +213,13 @@ class ChainSceneWriter(SceneWriter):
     def _recolor(self) -> None:
         view = self.solved.view
         highlight = self.highlight_index()
-        self._colors = sample_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
-        self._trail_colors = trail_colors(self._colors, 1)  # (S+1, K, 2, 3): one hand step per sample
+        # (S+1, K, 3) each: following one sample (the default), its skeleton blue and the others' light grey
+        self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, highlight, self.trail_of)
+        self._trail_colors = trail_colors(ramp, 1)  # (S+1, K, 2, 3): one hand step per sample
         self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
         self._ghost_colors = ghost_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
+        if follows_one(self.trail_of):
+            self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
 
     def _write_refined(self) -> None:
         view = self.solved.view
@@ -221,9 +239,11 @@ class ChainSceneWriter(SceneWriter):
         hand_position, hand_wxyz = gizmo_pose(arm, poses[highlight])
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
         if self.panel.show_trail.value and state > 0:
+            rows = trail_rows(view.num_samples, 1, highlight, self.trail_of)
             points, segment_colors = trail_until(
-                solved.trail_points, self._trail_colors, state, most_states=self.trail_states_limit(state)
-            )
+                solved.trail_points[:, rows], self._trail_colors[:, rows], state,
+                most_states=self.trail_states_limit(state),
+            )  # fmt: skip
             self.trail.points, self.trail.colors, self.trail.visible = points, segment_colors, True
         else:
             self.trail.visible = False
@@ -231,7 +251,9 @@ class ChainSceneWriter(SceneWriter):
         self.skeletons.colors = self._skeleton_colors[state]
         self.skeletons.visible = True
         if estimate is not None:
-            self.estimate_lines.points = skeleton_segments(estimate)
+            self.estimate_lines.points = skeleton_segments(
+                estimate[estimate_rows(view.num_samples, highlight, self.trail_of)]
+            )
             self.estimate_lines.visible = True
         else:
             self.estimate_lines.visible = False
@@ -249,6 +271,36 @@ class ChainSceneWriter(SceneWriter):
             node.visible = True
         self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
         self.refined_lines.visible = state == view.num_states - 1 and view.refined
+
+    def write_target_inputs(self, target: np.ndarray) -> None:
+        """The typed-target fields show the target solved: position in mm, rotation as roll pitch yaw in degrees."""
+        inputs = self.panel.learn.target
+        inputs.show_for("chain", len(target))
+        inputs.position_mm.value = tuple(round(1000 * float(value), 1) for value in target[:3])
+        if len(target) == 7:
+            inputs.rotation_deg.value = tuple(round(float(value), 1) for value in roll_pitch_yaw_degrees(target[3:7]))
+
+    def legend_entries(self) -> list[Entry]:
+        """What each colour of the 3-D scene means, for the panel's legend."""
+        follows = follows_one(self.trail_of)
+        return [
+            Entry(
+                Swatch(HIGHLIGHTED_ROBOT if follows else ACCENT_DARK), "highlighted robot (opaque), at the step shown"
+            ),
+            Entry(Swatch(GHOST_DARK, faint=GHOST_FAINT), "the other robots (see-through), t = T → 0"),
+            Entry(Swatch(OTHERS_FINAL if follows else DARK, faint=FAINT), "skeletons: joint origins to the hand"),
+            Entry(
+                Swatch(ACCENT_DARK, faint=ACCENT_FAINT) if follows else Swatch(DARK, faint=FAINT),
+                "trail (show trail): the highlighted hand's path"
+                if follows
+                else "trail (show trail): the hands' paths",
+            ),
+            Entry(Swatch((220, 40, 40)), "hand frame of the highlighted robot: x red, y green, z blue"),
+            Entry(Swatch(ESTIMATE), "x̂0: the denoiser's guess of the final pose"),
+            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
+            Entry(Swatch(PRIOR), "poses drawn from the prior"),
+            Entry(Swatch((220, 25, 25), "cross"), "target: the gizmo's pose"),
+        ]
 
     def _solve_text(self, solved) -> str:
         request = solved.request

@@ -14,6 +14,15 @@ import viser
 import viser.uplot
 
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
+from ikdp_viz.learn_panel import (
+    LearnControls,
+    build_clock,
+    build_compare,
+    build_legend,
+    build_share_button,
+    build_target_inputs,
+    build_trail_of,
+)
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -87,6 +96,7 @@ class Panel:
     checkpoint: viser.GuiDropdownHandle
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
+    learn: LearnControls  # what makes the denoising readable (learn_panel.py)
 
 
 def build_panel(
@@ -105,6 +115,7 @@ def build_panel(
     gui.main_panel.dock_right()
     with gui.add_folder("Target"):
         target_text = gui.add_markdown("")
+        target_inputs = build_target_inputs(gui)
     with gui.add_folder("Denoising"):
         timestep = gui.add_slider(
             "timestep t", min=0, max=num_timesteps, step=1, initial_value=num_timesteps,
@@ -117,9 +128,11 @@ def build_panel(
             "duration (s)", animation_seconds, min=0.0, max=30.0, step=0.1,
             hint="Time the animation takes from t = T to 0",
         )  # fmt: skip
+        clock, clock_note = build_clock(gui)
         show_trail = gui.add_checkbox(
             "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
         )
+        trail_of = build_trail_of(gui)
         show_estimate = gui.add_checkbox(
             "show x̂0", False, hint="Ghosted in purple: the denoiser's estimate of the final pose at the step shown"
         )
@@ -128,6 +141,7 @@ def build_panel(
             hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
         )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+    legend = build_legend(gui)
     joint_space = build_joint_space_controls(gui)
     with gui.add_folder("Sampling"):
         samples = gui.add_slider("samples K", min=1, max=MAX_SAMPLES, step=1, initial_value=DEFAULT_SAMPLES)
@@ -136,6 +150,7 @@ def build_panel(
             hint="best: the smallest tip error at t = 0 (of the refined pose when refine is on); samples count from 1",
         )  # fmt: skip
         sampler = gui.add_dropdown("sampler", sampler_names, initial_value=sampler_names[0])
+        compare = build_compare(gui)
         steps = gui.add_slider(
             "steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_STEPS, num_timesteps),
             disabled=True, hint="Reverse steps of a sampler that can skip some; DDPM always takes all T",
@@ -174,11 +189,13 @@ def build_panel(
             "Export GIF + PNG", icon=viser.Icon.DOWNLOAD,
             hint="The denoising as a GIF and the trail figure as a PNG, downloaded by this tab",
         )  # fmt: skip
+        share = build_share_button(gui)
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
+    learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs, compare)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
-        readout_text, plot, export_button, checkpoint, model_markdown, joint_space,
+        readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn,
     )  # fmt: skip

@@ -25,10 +25,18 @@ import viser
 
 import ikdp
 from ikdp_viz import meshes, readouts
+from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
+from ikdp_viz.compare import CompareNodes, compare_curve
+from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
+from ikdp_viz.legend import Entry, Swatch, legend_html
 from ikdp_viz.panel import Panel, highlight_index, plot_axes, plot_scales
 from ikdp_viz.scene import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
     ARM_LIFT,
+    DARK,
+    FAINT,
     HIGHLIGHT_LIFT,
     REFINED,
     REFINED_LIFT,
@@ -58,6 +66,8 @@ LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_FOLLOWED_STATES = 12  # the same for the one sample followed (the default picture)
+COMPARE_STROKE = "#2a9d5c"  # the chart's line of the compared sampler
 PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
 
@@ -156,11 +166,16 @@ class Animation:
     last: int  # the state it ends on
     seconds_per_state: float  # 0: jump to the last state
     started_at: float  # time.monotonic() when `first` was shown
+    offsets: np.ndarray | None = None  # (S+1,) when each state shows, seconds from state 0 (clock.py); None: evenly
 
     def state_at(self, now: float) -> int:
         """The state the clock has reached at `now`: a slow frame skips states, it never slows the animation."""
         if self.seconds_per_state <= 0:
             return self.last
+        if self.offsets is not None:
+            elapsed = now - self.started_at + self.offsets[self.first]
+            reached = int(np.searchsorted(self.offsets, elapsed, side="right")) - 1
+            return int(np.clip(reached, self.first, self.last))
         return min(self.last, self.first + int((now - self.started_at) / self.seconds_per_state))
 
 
@@ -193,18 +208,25 @@ class SceneWriter:
         self._thread: threading.Thread | None = None  # started by the first post(), not at construction
         self._thread_lock = threading.Lock()
         self.nodes_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
+        self._joint_scales_key: tuple | None = None  # what the joints' scales were written for
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
+        self._dot_colors: np.ndarray | None = None  # (S+1, K, 3) the joint-space dots, as "all samples" colours arms
         self.trail = self.links = self.joints = self.tips = None
         self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self._static_nodes: list = []
         self.joint_space = JointSpaceNodes(server, panel.joint_space, camera_fit)  # the torus beside the arm
+        self.compare = CompareNodes(server, camera_fit)  # a second sampler from the same noise, beside the arm
+        self._chart_series = tuple(panel.plot.series)  # the chart's own series; a comparison adds one
+        self._chart_compared: str | None = None  # the sampler whose curve the chart shows besides, if any
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
         # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
         # them, 27-29 without (docs/VIZ.md)
         server.scene.configure_default_lights(cast_shadow=False)
         self._build_static_scene()  # before any thread exists: the app's constructor is the only writer yet
+        self._write_legend()
+        self.write_target_inputs(self.target)
 
     # -------------------------------------------------------------- the queue
 
@@ -280,7 +302,9 @@ class SceneWriter:
                 self._replay_target = None
                 self._play_from_start(user=False)
         elif isinstance(message, Redraw):
+            self._write_legend()
             if self.solved is not None:
+                self._write_clock_note()
                 self._recolor()
                 self._draw_state(self.state)
         elif isinstance(message, PlaceTarget):
@@ -312,6 +336,8 @@ class SceneWriter:
             self.prior_lines = None
         self._recolor()
         self._ensure_arm_nodes()
+        self._write_clock_note()
+        self.write_target_inputs(solved.request.target)
         decades = readouts.error_range(solved.view.tip_error * self.CHART_SCALE)
         self.panel.plot.scales = plot_scales(self.solver.timesteps, *decades)
         self.panel.plot.axes = plot_axes(*decades, self.CHART_UNIT)
@@ -328,6 +354,24 @@ class SceneWriter:
         else:
             self._draw_state(last)
         self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
+
+    def draw_recorded_state(self, solved: Solved, state: int) -> None:
+        """Draw `state` of `solved` in full on the calling thread, without the panel: a frame of a recording.
+
+        Only for a writer of its own, never started (record.py drives one on a private server):
+        a started writer's thread must stay the only one that writes its scene.
+        """
+        if self._thread is not None:
+            raise RuntimeError(
+                "draw_recorded_state: this writer's thread draws its scene; record on a writer of its own"
+            )
+        if self.solved is not solved:
+            self.solved, self.animation = solved, None
+            self._recolor()
+            self._ensure_arm_nodes()
+            self._write_refined()
+        self.state = int(np.clip(state, 0, solved.view.num_states - 1))
+        self._draw_arms(solved, self.state, self.highlight_index())
 
     def _show_prior(self, joints: np.ndarray) -> None:
         if self.prior_lines is not None:
@@ -360,11 +404,57 @@ class SceneWriter:
 
     def _start(self, first: int, last: int) -> None:
         """Play from state `first` to `last`: `first` is drawn now, as an animation's frame (the light scene)."""
-        seconds_per_state = self.panel.duration.value / max(last, 1)
-        self.animation = Animation(first, last, seconds_per_state, time.monotonic())
+        seconds = float(self.panel.duration.value)
+        offsets = state_offsets(self.noise_levels(), str(self.panel.learn.clock.value), seconds)
+        self.animation = Animation(first, last, seconds / max(last, 1), time.monotonic(), offsets)
         self._panel_written = -np.inf  # the panel shows where it starts
         self._draw_state(first)
         self._tick()
+
+    def noise_levels(self) -> np.ndarray:
+        """(S+1,) the noise level sigma of each state of the solve on screen."""
+        schedule = self.solver.model.schedule
+        return noise_levels(self.solved.view.labels, schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+
+    def write_target_inputs(self, target: np.ndarray) -> None:
+        """The typed-target fields show the target solved (so a small change is one edit away)."""
+        inputs = self.panel.learn.target
+        inputs.show_for("planar", 2)
+        inputs.xy.value = tuple(round(float(value), 3) for value in target[:2])
+
+    def legend_entries(self) -> list[Entry]:
+        """What each colour of the planar scene means, for the panel's legend."""
+        if follows_one(self.trail_of):
+            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0")
+            others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)")
+        else:
+            trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0")
+            others = Entry(Swatch(DARK, faint=FAINT), "the other samples")
+        return [
+            trail,
+            Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown"),
+            others,
+            Entry(Swatch(TIP_DARK, "dot"), "tips"),
+            Entry(Swatch(ESTIMATE), "x̂0: the denoiser's guess of the final pose"),
+            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
+            Entry(Swatch(PRIOR), "poses drawn from the prior"),
+            Entry(Swatch(TARGET_RED, "cross"), "target"),
+        ]
+
+    def _write_legend(self) -> None:
+        self.panel.learn.legend.content = legend_html(self.legend_entries())
+
+    def _write_clock_note(self) -> None:
+        """Say on screen where the animation's time goes (the clock's spacing)."""
+        if self.solved is None:
+            return
+        sigmas = self.noise_levels()
+        clock = str(self.panel.learn.clock.value)
+        offsets = state_offsets(sigmas, clock, float(self.panel.duration.value))
+        spacing = "by noise level σ = √(1 − ᾱ_t)" if clock == CLOCK_CHOICES[0] else "evenly by step"
+        self.panel.learn.clock_note.content = (
+            f"Time spaced {spacing}, {clock_note(self.solved.view.labels, offsets, sigmas)}"
+        )
 
     def _tick(self) -> None:
         """Draw the state the animation's clock has reached, and end the animation on its last state."""
@@ -406,6 +496,7 @@ class SceneWriter:
         self.solver, self.solved, self.target = message.solver, None, message.target
         self._remove_arm_nodes()
         self.joint_space.reset()
+        self.compare.remove()
         self._build_static_scene()
         num_timesteps = message.solver.timesteps
         self.panel.timestep.max = num_timesteps
@@ -418,8 +509,15 @@ class SceneWriter:
 
     def _recolor(self) -> None:
         view = self.solved.view
-        self._colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
-        self._trail_colors = trail_colors(self._colors, view.num_links)
+        self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, self.highlight_index(), self.trail_of)
+        self._trail_colors = trail_colors(ramp, view.num_links)
+        # the joint-space dots: every sample as dark as in "all samples", or light grey dots vanish on the square
+        self._dot_colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
+
+    @property
+    def trail_of(self) -> str:
+        """Whose trail is drawn and drawn dark: "highlighted" (the paper's figure) or "all samples"."""
+        return str(self.panel.learn.trail_of.value)
 
     def highlight_index(self) -> int:
         """The 0-based sample the highlight dropdown names, for the solve on screen (0 before any)."""
@@ -451,7 +549,15 @@ class SceneWriter:
         """The slider, the chart's dot and the readouts at the state on screen; `now` is when (time.monotonic())."""
         view, highlight = self.solved.view, self.highlight_index()
         self.panel.timestep.value = int(view.labels[self.state])  # the app ignores slider updates with no client
-        self.panel.plot.data = error_curves(view, highlight, self.state, scale=self.CHART_SCALE)
+        data = error_curves(view, highlight, self.state, scale=self.CHART_SCALE)
+        compared = self.solved.request.compare_sampler if self.solved.compare is not None else None
+        if compared is not None:
+            data = (*data, compare_curve(view, self.solved.compare, highlight))
+        if compared != self._chart_compared:  # the series first: uPlot draws one column per series
+            extra = () if compared is None else (viser.uplot.Series(label=compared, stroke=COMPARE_STROKE, width=2),)
+            self.panel.plot.series = (*self._chart_series, *extra)
+            self._chart_compared = compared
+        self.panel.plot.data = data
         self._write_readouts()
         self._panel_written = now
 
@@ -466,10 +572,14 @@ class SceneWriter:
         colors = self._colors[state]  # (K, 3)
         tip_color = fade_colors(view.num_states, TIP_FAINT, TIP_DARK)[state]
         estimate = view.estimate_at(state) if self.panel.show_estimate.value else None
+        if estimate is not None:
+            estimate = estimate[estimate_rows(num_samples, highlight, self.trail_of)]
         if self.panel.show_trail.value:
+            rows = trail_rows(num_samples, num_links, highlight, self.trail_of)
             points, segment_colors = trail_until(
-                solved.trail_points, self._trail_colors, state, most_states=self.trail_states_limit(state)
-            )
+                solved.trail_points[:, rows], self._trail_colors[:, rows], state,
+                most_states=self.trail_states_limit(state),
+            )  # fmt: skip
             self.trail.points = points
             self.trail.colors = segment_colors
             self.trail.visible = True
@@ -484,7 +594,11 @@ class SceneWriter:
         link_colors = line_colors(np.repeat(colors, num_links, axis=0))[:, None]  # as dark as the joints
         self.links.colors = np.broadcast_to(link_colors, (num_samples * num_links, 2, 3))
         self.joints.batched_positions = placement.joint_positions
-        self.joints.batched_colors = np.repeat(colors, num_links + 1, axis=0)
+        joint_colors = colors
+        if follows_one(self.trail_of):  # only the followed sample's joints show, in one colour: a constant array,
+            joint_colors = np.broadcast_to(colors[highlight], colors.shape)  # which viser does not send again
+        self.joints.batched_colors = np.repeat(joint_colors, num_links + 1, axis=0)
+        self._write_joint_scales(num_samples, num_links, highlight)
         self.tips.batched_positions = placement.tip_positions
         self.tips.batched_colors = np.broadcast_to(tip_color, (num_samples, 3))
         for node in (self.links, self.joints, self.tips):
@@ -492,9 +606,26 @@ class SceneWriter:
         final_shown = state == view.num_states - 1 and view.refined
         self.refined_lines.visible = final_shown
         self.refined_tips.visible = final_shown
-        self.joint_space.draw(self.solver, solved, state, colors, highlight)
-        self.cross.position = self._cross_position()  # the joint-space view may have moved the camera (viser skips
-        # a position it holds already)
+        self.joint_space.draw(self.solver, solved, state, self._dot_colors[state], highlight)
+        self.compare.draw(
+            self.solver, solved, state, highlight, self.trail_of, show_trail=self.panel.show_trail.value,
+            sizes=self.sizes,
+        )  # fmt: skip
+        self.cross.position = self._cross_position()  # the joint-space and compare views may have moved the camera
+        # (viser skips a position it holds already)
+
+    def _write_joint_scales(self, num_samples: int, num_links: int, highlight: int) -> None:
+        """Following one sample, only its joints are drawn (the others are light lines): fewer spheres for the page
+        to draw in every frame (docs/VIZ.md); written only when the followed sample or the setting changes."""
+        key = (num_samples, num_links, highlight, follows_one(self.trail_of))
+        if key == self._joint_scales_key:
+            return
+        per_sample = np.ones(num_samples, np.float32)
+        if follows_one(self.trail_of):
+            per_sample[:] = 0.0
+            per_sample[highlight] = 1.0
+        self.joints.batched_scales = np.repeat(per_sample, num_links + 1)
+        self._joint_scales_key = key
 
     def animating(self, state: int) -> bool:
         """`state` is drawn as a frame of a playing animation, not its last: draw the light version of the scene.
@@ -508,8 +639,15 @@ class SceneWriter:
         return animation is not None and state < animation.last
 
     def trail_states_limit(self, state: int) -> int | None:
-        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end."""
-        return PLAYING_TRAIL_STATES if self.animating(state) else None
+        """How many states the trail may show at `state`: few while an animation plays, all (None) at its end.
+
+        Following one sample, 12 of its states: its whole trail (81 states of N links, 324 segments at
+        N = 4) cost the playing page about 10 ms a frame here (15.1 against 17.9 frames/s with 6 states,
+        benchmarks/viz_frames_ab.py under load 5).
+        """
+        if not self.animating(state):
+            return None
+        return PLAYING_FOLLOWED_STATES if follows_one(self.trail_of) else PLAYING_TRAIL_STATES
 
     def _write_play_label(self) -> None:
         playing = self.animation is not None
@@ -628,6 +766,7 @@ class SceneWriter:
             batched_colors=np.zeros((num_samples, 3), np.uint8), **spheres,
         )  # fmt: skip
         self.nodes_shape = shape
+        self._joint_scales_key = None  # a new node: all its joints drawn
 
     def _write_refined(self) -> None:
         view = self.solved.view

@@ -55,12 +55,43 @@ class ScreenshotConfig:
     seed: int = 3  # sampling seed
     chromium: str = "/usr/bin/chromium"  # browser executable
     size: tuple[int, int] = (1400, 900)  # viewport width height
+    trail_of: str = "highlighted"  # the panel's "trail of": highlighted or "all samples"
+    show_estimate: bool = False  # tick "show x̂0"
+    joint_space: bool = False  # tick "joint space view"
+    prior: bool = False  # press "Draw from the prior" once solved
+    timestep: int | None = None  # the step shown (None: t = 0, the final pose)
+    refine_steps: int = 0  # tick "refine" with this many steps (0: off)
+    sampler: str | None = None  # the panel's sampler (None: the model's default)
+    compare: str = "off"  # "compare with": off, ddim, dpmpp2m, ddpm
+    saved_page: Path | None = None  # instead: open this saved HTML page (a shared denoising) from disk, no server
+    wait: float = 6.0  # seconds a saved page plays before the picture
+
+
+def screenshot_saved_page(page_path: Path, output: Path, *, chromium: str, size: tuple[int, int], wait: float) -> None:
+    """A page saved on disk (a shared denoising, record.py) opened as file:// with no server, after `wait` s."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": size[0], "height": size[1]})
+        page.goto(Path(page_path).resolve().as_uri())
+        page.add_style_tag(content=NO_FADE_CSS)
+        with contextlib.suppress(Exception):  # the software-rendering notice covers a corner of the scene
+            page.locator(".mantine-Notification-closeButton").first.click(timeout=10_000)
+        time.sleep(wait)
+        output.parent.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(output))
+        browser.close()
 
 
 def main(argv: list[str] | None = None) -> None:
     import tyro
 
     args = tyro.cli(ScreenshotConfig, args=argv)
+    if args.saved_page is not None:
+        screenshot_saved_page(args.saved_page, args.output, chromium=args.chromium, size=args.size, wait=args.wait)
+        print(f"wrote {args.output}")
+        return
 
     import torch
     import viser
@@ -78,12 +109,30 @@ def main(argv: list[str] | None = None) -> None:
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     checkpoints = list_checkpoints(shipped_dir(), path)
     app = VizApp(
-        server, solver, checkpoints=checkpoints, solve_now=False, animation_seconds=0.0, target=tuple(args.target)
+        server,
+        solver,
+        checkpoints=checkpoints,
+        solve_now=False,
+        animation_seconds=0.0,
+        target=None if args.target is None else tuple(args.target),
     )
     app.panel.samples.value = args.samples
     app.panel.seed.value = args.seed
+    app.panel.learn.trail_of.value = args.trail_of
+    app.panel.show_estimate.value = args.show_estimate
+    app.panel.joint_space.show.value = args.joint_space
+    app.panel.learn.compare.value = args.compare
+    if args.sampler is not None:
+        app.panel.sampler.value = args.sampler
+    if args.refine_steps:
+        app.panel.refine_steps.value = args.refine_steps
+        app.panel.refine.value = True
     app.move_target(app.target)  # args.target pulled into the workspace, or the arm's first target
     app.wait_until_still(60)
+    if args.timestep is not None:
+        app.panel.timestep.value = args.timestep
+    if args.prior:
+        app.draw_prior()
     try:
         with sync_playwright() as playwright:
             browser, page = open_viewer_page(playwright, server, chromium=args.chromium, viewport=args.size)

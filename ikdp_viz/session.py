@@ -60,4 +60,16 @@ class Session:
             seed=int(panel.seed.value),
             arrival=time.perf_counter() if arrival is None else arrival,
             animate=animate,
+            **compare_settings(panel, sampler),
         )
+
+
+def compare_settings(panel: Panel, sampler: str) -> dict:
+    """The comparison the panel asks for: another sampler from the same x_T, unless it is the sampler itself."""
+    other = str(panel.learn.compare.value)
+    if other == "off" or other == sampler or other not in SAMPLERS:
+        return {}
+    return {
+        "compare_sampler": other,
+        "compare_steps": int(panel.steps.value) if SAMPLERS[other].supports_steps else None,
+    }

@@ -34,6 +34,8 @@ class SolveRequest:
     seed: int  # of the solve's torch.Generator
     arrival: float  # time.perf_counter() when the move (or settings change) arrived
     animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
+    compare_sampler: str | None = None  # also solve with this sampler from the same x_T (compare.py); None: not
+    compare_steps: int | None = None  # its number of steps (None: all T)
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,8 @@ class Solved:
     view: SolveView | ChainView  # what is drawn (arm_kinds picks which)
     trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
     solve_seconds: float  # solver.solve alone
+    compare: SolveView | None = None  # the same noise through request.compare_sampler (planar arms)
+    compare_trail: np.ndarray | None = None  # its trail points, as trail_points
 
 
 def stop_when(cancel: threading.Event):
@@ -59,6 +63,9 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         raise Cancelled
     generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
     started = time.perf_counter()
+    solver = request.solver
+    # x_T drawn as the solve itself would draw it first: the main solve is the same with or without a comparison
+    noise = torch.randn((1, request.num_samples, solver.noise_dim), generator=generator, device=solver.device)
     result = request.solver.solve(
         request.target[None],  # (1, target_dim): one target
         num_samples=request.num_samples,
@@ -69,9 +76,21 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         return_trajectory=True,
         return_estimates=True,
         callback=stop_when(cancel),
+        initial_noise=noise,
     )
     if result.stopped:
         raise Cancelled
     solve_seconds = time.perf_counter() - started
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target)
-    return Solved(request, view, trail, solve_seconds)
+    compare = compare_trail = None
+    if request.compare_sampler is not None and arm_kind(solver).name == "planar":
+        other = solver.solve(
+            request.target[None], num_samples=request.num_samples, sampler=request.compare_sampler,
+            steps=request.compare_steps, return_trajectory=True,
+            generator=torch.Generator(device=solver.device).manual_seed(request.seed + 1), initial_noise=noise,
+            callback=stop_when(cancel),
+        )  # fmt: skip
+        if other.stopped:
+            raise Cancelled
+        compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
+    return Solved(request, view, trail, solve_seconds, compare, compare_trail)

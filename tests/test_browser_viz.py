@@ -85,6 +85,7 @@ def red_near(image: np.ndarray, pixel: np.ndarray, radius: int = 12) -> bool:
 def viewer(browser, tiny_checkpoint):
     solver = ikdp.load(tiny_checkpoint)
     with running_app(solver, solve_now=False, target=TARGET, animation_seconds=0.0) as app:
+        app.panel.learn.trail_of.value = "all samples"  # every final link dark: what these tests look for
         console: list[str] = []
         page = open_page(browser, app, console)
         viewer = Viewer(app, page, console)
@@ -117,6 +118,33 @@ def test_the_page_connects_with_webgl_and_shows_the_arm_once_drawn(viewer):
     pixels = viewer.final_link_pixels()
     assert dark_fraction(after, pixels) >= 0.8  # dark where the arm's projection falls
     assert dark_fraction(viewer.before, pixels) == 0.0  # and nothing there before the server drew it
+
+
+def test_the_default_picture_draws_the_highlighted_arm_blue_and_the_others_light(viewer):
+    app = viewer.app
+    show_final_pose(viewer)
+    app.panel.learn.trail_of.value = "highlighted"  # the viewer's default (the paper's figure)
+    try:
+        others = viewer.final_link_pixels()
+        joints = app.solved.view.joints[-1]
+        highlight = app.highlight_index()
+        middles = (joints[highlight, :-1] + joints[highlight, 1:]) / 2
+        middles = middles[np.linalg.norm(middles - app.target, axis=-1) > np.mean(app.solver.lengths)]  # no gizmo
+        chosen = project(app, canvas_box(viewer.page), middles)
+        assert len(chosen) >= 1
+
+        def blue_at(image, pixel, radius=2) -> bool:
+            u, v = np.rint(pixel).astype(int)
+            window = image[v - radius : v + radius + 1, u - radius : u + radius + 1, :3].astype(int)
+            return bool(((window[..., 2] > 150) & (window[..., 0] < 90)).any())
+
+        image = viewer.wait_for_picture(
+            lambda image: dark_fraction(image, others) < 0.2 and all(blue_at(image, pixel) for pixel in chosen)
+        )
+        assert all(blue_at(image, pixel) for pixel in chosen)  # the followed sample: dark blue
+        assert dark_fraction(image, others) < 0.2  # the others: light, no longer near black
+    finally:
+        app.panel.learn.trail_of.value = "all samples"
 
 
 def test_moving_the_timestep_slider_in_the_page_changes_the_picture(viewer):

@@ -50,3 +50,25 @@ def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shippe
             page.screenshot(timeout=BROWSER_TIMEOUT * 1000)  # chromium renders (and runs the chart's draw) for it
             assert not errors, f"{name} {target}: {errors[:3]} ({len(errors)} in all)"
         page.close()
+
+
+def test_comparing_two_samplers_and_the_readable_settings_raise_no_error_in_the_page(browser, shipped_solver):
+    """The chart gains and loses a series, the second workspace comes and goes, the legend and clock change."""
+    with running_app(shipped_solver, solve_now=False, animation_seconds=1.0) as app:
+        page, errors = open_page_collecting_errors(browser, app, height=1600)
+        steps = (
+            lambda: setattr(app.panel.learn.compare, "value", "ddim"),
+            lambda: setattr(app.panel.learn.trail_of, "value", "all samples"),
+            lambda: setattr(app.panel.learn.clock, "value", "step"),
+            lambda: setattr(app.panel.learn.compare, "value", "dpmpp2m"),
+            lambda: setattr(app.panel.learn.compare, "value", "off"),
+        )
+        app.move_target(ISSUE_TARGET)
+        for number, step in enumerate(steps):
+            step()
+            settle(app)
+            app.panel.timestep.value = app.solver.timesteps // 2
+            time.sleep(SETTLE_IN_PAGE)
+            page.screenshot(timeout=BROWSER_TIMEOUT * 1000)
+            assert not errors, f"step {number}: {errors[:3]} ({len(errors)} in all)"
+        page.close()

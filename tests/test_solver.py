@@ -116,3 +116,33 @@ def test_the_shipped_panda_model_keeps_its_measured_accuracy():
     assert int(arm.limit_violations(out.raw_angles).sum()) == 0 and int(arm.limit_violations(out.angles).sum()) == 0
     raw = arm.position_error(out.raw_angles[:, :1], targets[:, None])
     assert raw.median() <= 0.08  # DPM-Solver++-10 measured 38 mm on 1000 targets (the first-stage model 59 mm)
+
+
+def test_initial_noise_sets_x_t_so_two_samplers_start_from_the_same_noise(tiny_checkpoint):
+    solver = ikdp.load(tiny_checkpoint)
+    target = [[1.0, 0.8]]
+    dim = solver.noise_dim
+    noise = torch.randn((1, 4, dim), generator=torch.Generator().manual_seed(5))
+    # given, x_T is exactly the noise the seeded generator would have drawn first: the same solve
+    seeded = solver.solve(target, num_samples=4, sampler="ddim", steps=5, generator=torch.Generator().manual_seed(5))
+    given = solver.solve(target, num_samples=4, sampler="ddim", steps=5, initial_noise=noise)
+    assert torch.equal(given.angles, seeded.angles)
+    # DDPM and DDIM from one x_T: the same first state, different paths after it
+    runs = {
+        name: solver.solve(
+            target,
+            num_samples=4,
+            sampler=name,
+            initial_noise=noise,
+            return_trajectory=True,
+            generator=torch.Generator().manual_seed(1),
+        )  # fmt: skip
+        for name in ("ddpm", "ddim")
+    }
+    assert torch.equal(runs["ddpm"].trajectory[0], runs["ddim"].trajectory[0])
+    assert torch.equal(runs["ddpm"].trajectory[0], solver.model.representation.decode(noise.reshape(4, dim))[None])
+    assert not torch.allclose(runs["ddpm"].angles, runs["ddim"].angles)
+    other = solver.solve(target, num_samples=4, sampler="ddim", steps=5, initial_noise=noise + 0.5)
+    assert not torch.allclose(other.angles, given.angles)  # the noise given is the noise used
+    with pytest.raises(ValueError, match=r"initial_noise: expected x_T of shape \(1, 4, "):
+        solver.solve(target, num_samples=4, initial_noise=torch.zeros(4, dim))

@@ -59,6 +59,7 @@ def final_polylines(app) -> np.ndarray:
 
 
 def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, solver):
+    app.panel.learn.trail_of.value = "all samples"  # every final polyline in the trail
     drag_gizmo(app, 1.1, -0.7)
     settle(app)
     view = app.solved.view
@@ -77,6 +78,7 @@ def test_moving_the_gizmo_solves_the_new_target_and_draws_its_final_pose(app, so
 
 
 def test_scrubbing_the_timestep_slider_shows_that_state(app):
+    app.panel.learn.trail_of.value = "all samples"
     view = app.solved.view
     final = drawn_joints(app).copy()
     app.panel.timestep.value = 7
@@ -132,12 +134,44 @@ def test_a_drag_released_past_the_boundary_still_reads_clamped_and_sends_the_cro
 
 
 def test_the_trail_toggle_shows_all_intermediate_poses_or_none(app):
+    app.panel.learn.trail_of.value = "all samples"
     view = app.solved.view
     assert app.trail.visible and app.trail.points.shape[0] == view.num_states * view.num_samples * view.num_links
     app.panel.show_trail.value = False
     assert not app.trail.visible and app.links.visible
     app.panel.show_trail.value = True
     assert app.trail.visible
+
+
+def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure(app):
+    view, highlight = app.solved.view, app.highlight_index()
+    num_samples, num_links = view.num_samples, view.num_links
+    assert app.panel.learn.trail_of.value == "highlighted"
+    # the trail is the highlighted sample's alone, every state of it, darkening toward t = 0
+    assert app.trail.points.shape[0] == view.num_states * num_links
+    per_state = app.trail.points.reshape(view.num_states, num_links, 2, 3)[..., :2]
+    assert np.allclose(per_state[:, :, 0], view.joints[:, highlight, :-1], atol=1e-5)
+    brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
+    assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
+    # the others' final poses light lines, the highlighted one dark blue with its joints; the others' joints not drawn
+    from ikdp_viz.emphasis import OTHERS_FINAL
+    from ikdp_viz.scene import ACCENT_DARK, line_colors
+
+    link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]
+    others = np.delete(link_colors, highlight, axis=0)
+    assert (others == line_colors(np.array(OTHERS_FINAL, np.uint8))).all()  # light grey (185)
+    assert (link_colors[highlight] == line_colors(np.array(ACCENT_DARK, np.uint8))).all()
+    scales = app.joints.batched_scales.reshape(num_samples, num_links + 1)
+    assert (scales[highlight] == 1).all() and (np.delete(scales, highlight, axis=0) == 0).all()
+    assert (app.joints.batched_colors.reshape(num_samples, -1, 3)[highlight] == ACCENT_DARK).all()
+    # x̂0 of the followed sample only; all of them with "all samples"
+    app.panel.show_estimate.value = True
+    app.panel.timestep.value = 10
+    assert app.estimate_lines.points.shape[0] == num_links
+    app.panel.learn.trail_of.value = "all samples"
+    assert app.estimate_lines.points.shape[0] == num_samples * num_links
+    assert app.trail.points.shape[0] == (app.state + 1) * num_samples * num_links
+    assert (app.joints.batched_scales == 1).all()  # every sample's joints again
 
 
 def test_samples_and_highlight_change_what_is_drawn(app):
@@ -184,6 +218,7 @@ def test_the_estimate_toggle_ghosts_the_denoisers_x0_of_the_step_shown(app, solv
     view = app.solved.view
     assert view.estimate_joints.shape == (view.num_states - 1, 16, solver.num_links + 1, 2)
     assert not app.estimate_lines.visible  # off by default
+    app.panel.learn.trail_of.value = "all samples"  # every sample's x̂0
     app.panel.show_estimate.value = True
     app.panel.timestep.value = 10
     state = app.state
@@ -503,3 +538,33 @@ def test_a_fuzz_of_moves_sampler_changes_and_reloads_from_several_threads_ends_o
     assert app.latencies[-1][2]  # the last drawn was the newest when it finished
     assert app.worker.stats.failed == 0
     assert "Traceback" not in capfd.readouterr().err
+
+
+def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
+    from ikdp_viz.clock import noise_levels, state_offsets
+
+    app.panel.duration.value = 4.0
+    note = app.panel.learn.clock_note.content
+    assert app.panel.learn.clock.value == "noise level" and "by noise level σ" in note and "of 4.0 s" in note
+    app.toggle_play()  # play from t = T
+    animation = app.writer.animation
+    sigmas = noise_levels(app.solved.view.labels, app.solver.model.schedule.sqrt_one_minus_alphas_cumprod.numpy())
+    assert animation is not None and np.allclose(animation.offsets, state_offsets(sigmas, "noise level", 4.0))
+    app.toggle_play()  # pause
+    app.panel.learn.clock.value = "step"
+    assert "evenly by step" in app.panel.learn.clock_note.content
+    app.panel.duration.value = 0.0
+
+
+def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
+    from ikdp_viz.legend import css
+    from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK
+    from ikdp_viz.scene_writer import ESTIMATE, PRIOR, TARGET_RED
+
+    legend = app.panel.learn.legend.content
+    for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
+        assert css(color) in legend  # each colour of the scene has its swatch
+    for words in ("trail of the highlighted sample", "x̂0", "refined", "prior", "tips", "target"):
+        assert words in legend
+    app.panel.learn.trail_of.value = "all samples"
+    assert "trails of all samples" in app.panel.learn.legend.content

@@ -65,6 +65,7 @@ def test_a_solve_draws_every_sample_as_a_robot_and_a_skeleton(app):
 
 
 def test_the_timestep_slider_puts_that_state_on_screen(app):
+    app.panel.learn.trail_of.value = "all samples"  # every hand's path
     writer, view = app.writer, app.solved.view
     app.show_state(0)
     assert app.state == 0 and app.panel.timestep.value == app.solver.timesteps
@@ -157,6 +158,7 @@ def test_the_joint_space_controls_are_hidden_for_a_robot_and_shown_for_a_planar_
 def test_a_pause_draws_the_state_in_full_again(app):
     """While the animation plays the trail is light (every s-th state); paused, the frame is a still one."""
     writer, last = app.writer, app.solved.view.num_states - 1
+    app.panel.learn.trail_of.value = "all samples"  # the light trail while playing is every sample's
     app.panel.show_trail.value = True
     app.panel.duration.value = 1.0 * last  # a state a second: caught on the way below
     app.show_state(0)
@@ -173,3 +175,24 @@ def test_a_pause_draws_the_state_in_full_again(app):
                               writer.mesh_offsets)  # fmt: skip
     np.testing.assert_allclose(writer.ghosts[2].batched_positions[0], positions[2], atol=1e-5)  # at the paused state
     assert len(writer.trail.points) == (app.state + 1) * K  # the whole trail up to the state
+
+
+def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
+    legend = app.panel.learn.legend.content
+    assert "highlighted robot" in legend and "skeletons" in legend and "hand frame" in legend and "x̂0" in legend
+
+
+def test_the_followed_robot_stands_out_and_the_others_recede(app):
+    from ikdp_viz.chain_scene_writer import HIGHLIGHTED_ROBOT
+
+    writer, view = app.writer, app.solved.view
+    highlight, num_joints = app.highlight_index(), view.num_joints
+    for state in (1, view.num_states - 1):  # early and late: the followed robot is the same strong blue
+        app.show_state(state)
+        assert all(node.color == HIGHLIGHTED_ROBOT for node in writer.robot)
+    skeleton = writer.skeletons.colors.reshape(view.num_samples, num_joints, 2, 3)[:, 0, 0].astype(int)
+    others = np.delete(skeleton, highlight, axis=0)
+    assert (others.min(axis=1) >= 150).all() and skeleton[highlight].sum() < others.sum(axis=1).min() - 200
+    app.panel.show_trail.value = True
+    assert len(writer.trail.points) == app.state + 1  # the followed hand's path alone, one step per state
+    app.panel.show_trail.value = False

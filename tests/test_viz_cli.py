@@ -74,6 +74,7 @@ def test_help_lists_every_option_once_with_its_one_default():
         (("--host", "no.such.host.invalid", "--port", "0"), "--host no.such.host.invalid: cannot listen there"),
         (("--sampler", "euler"), "--sampler euler: expected one of ddpm, ddim, dpmpp2m"),
         (("--samples", "0"), "--samples 0: expected 1 to 64"),
+        (("--target", "1", "2", "3"), "--target 1 2 3: target: a planar arm's target is x y, got 3 numbers"),
     ],
 )
 def test_a_bad_port_or_host_is_one_line_and_exit_status_2(arguments, reason):
@@ -141,7 +142,7 @@ def test_the_flags_open_the_viewer_on_a_given_target_with_given_settings(tiny_ch
         assert (request.sampler, request.steps, request.seed, request.refine_steps) == ("ddim", 4, 3, 2)
 
 
-def test_without_sampler_flags_a_planar_model_uses_ddpm_and_a_robot_ten_dpm_solver_steps(
+def test_without_sampler_flags_planar_and_robot_models_open_on_ddpm_the_setting_with_good_poses(
     tiny_checkpoint, tiny_chain_checkpoint
 ):
     from viz_helpers import running_app, settle
@@ -149,7 +150,7 @@ def test_without_sampler_flags_a_planar_model_uses_ddpm_and_a_robot_ten_dpm_solv
     import ikdp
     from ikdp_viz.__main__ import VizConfig, apply_settings
 
-    for checkpoint, expected in ((tiny_checkpoint, ("ddpm", None)), (tiny_chain_checkpoint, ("dpmpp2m", 10))):
+    for checkpoint, expected in ((tiny_checkpoint, ("ddpm", None)), (tiny_chain_checkpoint, ("ddpm", None))):
         with running_app(ikdp.load(checkpoint), solve_now=False, animation_seconds=0.0) as app:
             apply_settings(app, VizConfig(samples=2))
             settle(app)

@@ -221,7 +221,7 @@ def test_toggling_the_view_draws_its_nodes_and_the_slider_moves_the_samples(two_
         count, num_samples = int(controls.grid.value), int(app.panel.samples.value)
         assert nodes.arrows.points.shape == (3 * count * count, 2, 3)
         assert nodes.samples.points.shape == (num_samples, 3)
-        assert np.array_equal(nodes.samples.colors, app.writer._colors[app.state])  # coloured like the arms
+        assert np.array_equal(nodes.samples.colors, app.writer._dot_colors[app.state])  # as "all samples" colours arms
         assert nodes.solutions.points.shape == (4, 2, 3)  # two crosses: elbow up and elbow down
         final_samples, final_arrows = nodes.samples.points.copy(), nodes.arrows.points.copy()
         assert nodes.last_field.timestep == 0

@@ -1,0 +1,150 @@
+"""Same noise, two samplers: the second sampler's denoising drawn beside the first, from the very same x_T.
+
+With "compare with" set, each solve also runs that sampler (DDIM or DPM-Solver++, the
+deterministic ODE; or DDPM) from the x_T the main sampler started from (solving.py,
+`Solver.solve(initial_noise=)`). This draws it in a second workspace to the left of the
+first, at the state nearest the same diffusion time t, coloured as the main arms are (the
+same sample followed, its trail faint to dark), with a label naming each side; the chart
+gets the followed sample's tip error under the second sampler (`compare_curve`). The scene
+writer's thread alone calls `draw`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import viser
+
+from ikdp_viz.emphasis import emphasis_colors, trail_rows
+from ikdp_viz.scene import (
+    ERROR_FLOOR,
+    arm_placement,
+    circle_segments,
+    line_colors,
+    nearest_state,
+    trail_colors,
+    trail_until,
+)
+
+GAP = 0.35  # between the two workspaces, in reach radii
+DETERMINISTIC = {"ddim": "DDIM (deterministic ODE)", "dpmpp2m": "DPM-Solver++(2M) (deterministic ODE)"}
+
+
+def sampler_title(name: str, steps: int) -> str:
+    return f"{DETERMINISTIC.get(name, name.upper() + ' (stochastic)')}, {steps} steps"
+
+
+def offset(reach: float) -> float:
+    """x of the second workspace's centre: to the left of the first."""
+    return -(2 + GAP) * reach
+
+
+def camera_over_pair(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(position, look_at) of a camera above both workspaces, framed as scene_writer.camera_fit frames one."""
+    left, right = offset(reach) - reach, reach
+    half, middle = (right - left) / 2, (right + left) / 2
+    distance = 1.55 * half
+    return (middle, -1e-3 * distance, distance), (middle, 0.0, 0.0)
+
+
+def compare_curve(view, compare, highlight: int) -> np.ndarray:
+    """log10 of the followed sample's tip error under the second sampler, on the main chart's x (t = 0 .. T).
+
+    Its states sit at fewer diffusion times than DDPM's: between two, the line joins them.
+    """
+    x = np.sort(view.labels).astype(np.float64)
+    order = np.argsort(compare.labels, kind="stable")
+    values = np.log10(np.maximum(compare.tip_error[:, highlight], ERROR_FLOOR))[order]
+    return np.interp(x, compare.labels[order].astype(np.float64), values)
+
+
+class CompareNodes:
+    """The second sampler's workspace: its circle, trail, arms, target cross and the two labels."""
+
+    def __init__(self, server: viser.ViserServer, arm_camera):
+        self.server = server
+        self._arm_camera = arm_camera  # the camera of the workspace alone, restored when the comparison goes
+        self.nodes: dict = {}
+        self._solved_id: int | None = None  # the solve whose colours are cached
+        self._colors = self._trail_colors = None
+
+    @property
+    def shown(self) -> bool:
+        return bool(self.nodes)
+
+    def draw(self, solver, solved, state: int, highlight: int, trail_of: str, *, show_trail: bool, sizes) -> None:
+        """Write the second sampler's state nearest the main one's diffusion time, or remove the view."""
+        compare = getattr(solved, "compare", None)
+        reach = float(solver.reach[1])
+        if compare is None:
+            if self.shown:
+                self.remove()
+                self._move_cameras(self._arm_camera(reach))
+            return
+        if not self.shown:
+            self._build(solver, solved, reach, sizes)
+        key = (id(solved), highlight, trail_of)
+        if self._solved_id != key:
+            self._colors, ramp = emphasis_colors(compare.num_states, compare.num_samples, highlight, trail_of)
+            self._trail_colors = trail_colors(ramp, compare.num_links)
+            self._solved_id = key
+            request = solved.request
+            self.nodes["title"].text = sampler_title(request.compare_sampler, compare.num_states - 1)
+            main_steps = solved.view.num_states - 1
+            self.nodes["main_title"].text = sampler_title(request.sampler, main_steps) + ": same x_T"
+            target, cross = solved.view.target, self.nodes["cross"]
+            cross.position = (float(target[0]) + offset(reach), float(target[1]), float(cross.position[2]))
+        shown = nearest_state(compare.labels, float(solved.view.labels[state]))
+        shift = np.array([offset(reach), 0.0, 0.0])
+        rows = trail_rows(compare.num_samples, compare.num_links, highlight, trail_of)
+        if show_trail:
+            points, colors = trail_until(solved.compare_trail[:, rows], self._trail_colors[:, rows], shown)
+            self.nodes["trail"].points, self.nodes["trail"].colors = points + shift.astype(np.float32), colors
+        self.nodes["trail"].visible = show_trail
+        placement = arm_placement(compare.joints[shown], height=0.25 * sizes.joint, raised=highlight,
+                                  lift=2.0 * sizes.joint)  # fmt: skip
+        self.nodes["links"].points = placement.link_segments + shift
+        per_link = line_colors(np.repeat(self._colors[shown], compare.num_links, axis=0))[:, None]
+        self.nodes["links"].colors = np.broadcast_to(per_link, (compare.num_samples * compare.num_links, 2, 3))
+
+    def _build(self, solver, solved, reach: float, sizes) -> None:
+        from ikdp_viz import meshes
+        from ikdp_viz.scene_writer import ARM_PIXELS, LINE_PIXELS, TARGET_RED
+
+        scene, x = self.server.scene, offset(reach)
+        compare = solved.compare
+        count = compare.num_samples * compare.num_links
+        ring = circle_segments(reach, 96, z=-0.01 * reach) + (x, 0.0, 0.0)
+        self.nodes["circle"] = scene.add_line_segments(
+            "/compare/workspace", ring, colors=(150, 150, 150), thickness=LINE_PIXELS, thickness_units="screen"
+        )
+        self.nodes["trail"] = scene.add_line_segments(
+            "/compare/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS,
+            thickness_units="screen",
+        )  # fmt: skip
+        self.nodes["links"] = scene.add_line_segments(
+            "/compare/links", np.zeros((count, 2, 3)), colors=np.zeros((count, 2, 3), np.uint8), thickness=ARM_PIXELS,
+            thickness_units="screen",
+        )  # fmt: skip
+        cross = meshes.cross_mesh(sizes.cross)
+        target = solved.view.target
+        self.nodes["cross"] = scene.add_mesh_simple(
+            "/compare/target", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
+            position=(float(target[0]) + x, float(target[1]), 4.0 * sizes.joint),
+        )  # fmt: skip
+        top = 1.08 * reach
+        self.nodes["title"] = scene.add_label("/compare/title", "", position=(x, top, 0.0), anchor="bottom-center")
+        self.nodes["main_title"] = scene.add_label("/compare/main_title", "", position=(0.0, top, 0.0),
+                                                   anchor="bottom-center")  # fmt: skip
+        self._move_cameras(camera_over_pair(reach))
+
+    def remove(self) -> None:
+        for node in self.nodes.values():
+            node.remove()
+        self.nodes, self._solved_id = {}, None
+
+    def _move_cameras(self, camera) -> None:
+        position, look_at = camera
+        self.server.initial_camera.position, self.server.initial_camera.look_at = position, look_at
+        for client in self.server.get_clients().values():
+            with client.atomic():
+                client.camera.position, client.camera.look_at = position, look_at

@@ -1,0 +1,53 @@
+"""A target typed as numbers, in the panel or on the command line, and the numbers the panel shows for a target.
+
+A planar arm's target is x, y. A robot's is its hand's position in metres and, for a pose
+model, a rotation: typed as roll, pitch, yaw in degrees (the panel; the command line's
+six numbers) or as a quaternion w, x, y, z (the command line's seven). A pose model given
+a position alone keeps the rotation it had. No viser here (its small SO3 helper aside).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import viser.transforms as transforms
+
+
+def rotation_wxyz(roll_pitch_yaw_degrees) -> np.ndarray:
+    """(4,) unit quaternion w, x, y, z of a rotation given as roll, pitch, yaw in degrees (about x, then y, then z)."""
+    roll, pitch, yaw = np.deg2rad(np.asarray(roll_pitch_yaw_degrees, dtype=np.float64))
+    return np.asarray(transforms.SO3.from_rpy_radians(roll, pitch, yaw).wxyz, dtype=np.float64)
+
+
+def roll_pitch_yaw_degrees(wxyz) -> np.ndarray:
+    """(3,) roll, pitch, yaw in degrees of the unit quaternion `wxyz`."""
+    angles = transforms.SO3(np.asarray(wxyz, dtype=np.float64)).as_rpy_radians()
+    return np.rad2deg(np.array([angles.roll, angles.pitch, angles.yaw]))
+
+
+def target_from_numbers(values, *, kind: str, target_dim: int, current: np.ndarray) -> np.ndarray:
+    """The target that typed `values` ask for (not yet pulled into the workspace).
+
+    planar: x, y. A robot: x, y, z metres; then roll, pitch, yaw degrees (6 numbers) or w, x, y, z (7);
+    a pose model given 3 numbers keeps `current`'s rotation. ValueError names what was expected.
+    """
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    if not np.isfinite(values).all():
+        raise ValueError(f"target: expected finite numbers, got {values.tolist()}")
+    if kind == "planar":
+        if values.size != 2:
+            raise ValueError(f"target: a planar arm's target is x y, got {values.size} numbers")
+        return values
+    if target_dim == 3:
+        if values.size != 3:
+            raise ValueError(f"target: this robot model's target is a position x y z (m), got {values.size} numbers")
+        return values
+    if values.size == 3:
+        return np.concatenate((values, np.asarray(current, dtype=np.float64)[3:7]))
+    if values.size == 6:
+        return np.concatenate((values[:3], rotation_wxyz(values[3:])))
+    if values.size == 7:
+        return values
+    raise ValueError(
+        "target: a robot's pose target is x y z (m), then roll pitch yaw (degrees) or w x y z; "
+        f"got {values.size} numbers"
+    )

@@ -1,0 +1,71 @@
+"""Sharing a denoising: the solve on screen as one HTML page with viser's recorded scene (ikdp_viz/record.py)."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+import msgspec
+import numpy as np
+import pytest
+import zstandard
+from viz_helpers import running_app, settle
+
+import ikdp
+from ikdp_viz.clock import noise_levels, state_offsets
+from ikdp_viz.record import HOLD_FINAL, SHORTEST_STATE, RecordSettings, file_name, record_html
+
+
+def recording(page: str) -> dict:
+    """The scene recording a page embeds: viser's base64 of [inner size][zstd([msgpack length][msgpack]...)]."""
+    encoded = re.search(r'window\.__VISER_EMBED_DATA__="([^"]+)"', page).group(1)
+    raw = base64.b64decode(encoded)
+    inner = zstandard.ZstdDecompressor().decompress(raw[8:], max_output_size=int.from_bytes(raw[:8], "little"))
+    length = int.from_bytes(inner[:8], "little")
+    return msgspec.msgpack.decode(inner[8 : 8 + length])
+
+
+@pytest.fixture(scope="module")
+def shared(tiny_checkpoint):
+    with running_app(ikdp.load(tiny_checkpoint), animation_seconds=0.0, target=(1.2, 0.6)) as app:
+        settle(app)
+        app.panel.duration.value = 2.0
+        name, page = app.share()
+        yield app, name, page
+
+
+def test_the_shared_page_is_viser_s_static_client_with_every_state_on_the_viewer_s_clock(shared):
+    app, name, page = shared
+    view = app.solved.view
+    assert name == file_name(app.solved) and name.startswith("ikdp_ddpm_K16_seed0_+1.200_+0.600")
+    assert page.lstrip().lower().startswith("<!doctype html") and "<script" in page
+    assert not re.search(r'<script[^>]+src="http', page)  # nothing fetched from a network: it plays offline
+    data = recording(page)
+    sigmas = noise_levels(view.labels, app.solver.model.schedule.sqrt_one_minus_alphas_cumprod.numpy())
+    steps = np.maximum(np.diff(state_offsets(sigmas, "noise level", 2.0)), SHORTEST_STATE)
+    assert data["durationSeconds"] == pytest.approx(steps.sum() + HOLD_FINAL)
+    # one label per state saying the step, in order, at the times of the clock
+    labels = [(time, message) for time, message in data["messages"] if "step" in str(message.get("props", message))]
+    texts = [str(message) for _, message in labels]
+    for state in (0, view.num_states // 2, view.num_states - 1):
+        assert any(f"step {state} of {view.num_states - 1} " in text for text in texts)
+    times = sorted({time for time, _ in data["messages"]})
+    assert len(times) == view.num_states and times[-1] == pytest.approx(steps.sum())
+    assert not any("Gui" in str(message.get("type", "")) for _, message in data["messages"])  # the scene only
+
+
+def test_a_recording_refuses_a_zero_duration(shared):
+    app, _, _ = shared
+    with pytest.raises(ValueError, match="seconds"):
+        record_html(app.solved, RecordSettings(seconds=0.0))
+
+
+def test_the_record_command_writes_a_page_for_a_robot(tiny_chain_checkpoint, tmp_path, capsys):
+    from ikdp_viz.record import main
+
+    output = tmp_path / "panda.html"
+    main(["--ckpt", str(tiny_chain_checkpoint), "--output", str(output), "--samples", "2", "--seconds", "1"])
+    data = recording(output.read_text(encoding="utf-8"))
+    assert data["durationSeconds"] > 1.0 and "no server needed" in capsys.readouterr().out
+    names = {message.get("name") for _, message in data["messages"]}
+    assert "/recording/target" in names and any(str(name).startswith("/samples/robot/") for name in names)
