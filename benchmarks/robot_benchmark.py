@@ -44,6 +44,7 @@ class RobotBenchmarkConfig:
     refine_steps: int = 5  # limit-aware DLS steps after sampling
     samplers: tuple[str, ...] = ("ddpm", "dpmpp2m:10", "ddim:10")  # name[:steps] measured raw
     pipeline_sampler: str = "dpmpp2m:10"  # the sampler of the K=16 + refinement pipeline
+    fast_pipelines: tuple[str, ...] = ("ddim:2+5", "ddim:3+5", "ddim:2+10", "dpmpp2m:3+10")  # name:steps+refine
     random_start_steps: tuple[int, ...] = (5, 10, 20, 50)  # DLS steps from 16 uniform random starts
     pk_retries: int = 16  # PseudoInverseIK starts per target
     pk_iterations: int = 30  # PseudoInverseIK iterations
@@ -147,6 +148,22 @@ def main(config: RobotBenchmarkConfig) -> dict:
     seconds, out = median_seconds(ikdp_pipeline, config.repeats)
     label = f"IKDP {config.pipeline_sampler}, K={config.samples} + {config.refine_steps} DLS steps"
     pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, out.angles, targets)}
+    for text in config.fast_pipelines:  # few sampler steps, the refinement finishing: the CPU's fastest
+        sampler_text, _, refine = text.partition("+")
+        fast_name, fast_steps = parse_sampler(sampler_text)
+        seconds, out = median_seconds(
+            lambda fast_name=fast_name, fast_steps=fast_steps, refine=int(refine): solver.solve(
+                targets,
+                num_samples=config.samples,
+                sampler=fast_name,
+                steps=fast_steps,
+                refine_steps=refine,
+                generator=torch.Generator().manual_seed(2),
+            ),
+            config.repeats,
+        )
+        label = f"IKDP {sampler_text}, K={config.samples} + {refine} DLS steps"
+        pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, out.angles, targets)}
     goals = targets[:, None].expand(-1, config.samples, -1)
     for dls_steps in config.random_start_steps:
         starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
