@@ -16,7 +16,7 @@ from ikdp.arm import PlanarArm, arm_from_config
 from ikdp.denoisers import DenoiserConfig, build_denoiser
 from ikdp.representation import AngleRepresentation
 from ikdp.samplers import Sampler, make_sampler
-from ikdp.sampling import StepCallback, Trajectory, run_reverse_diffusion
+from ikdp.sampling import Guidance, StepCallback, Trajectory, run_reverse_diffusion
 from ikdp.schedule import PREDICTION_KINDS, DiffusionSchedule, ScheduleConfig
 
 # The FK-consistency term weighs a rotation miss of 1 degree like a position miss of about 0.25 % of the
@@ -151,6 +151,7 @@ class IKDiffusion(nn.Module):
         return_trajectory: bool = False,
         return_estimates: bool = False,
         callback: StepCallback | None = None,
+        guidance: Guidance | None = None,
     ) -> Trajectory:
         """Reverse diffusion, targets: (B, target_dim) -> K = num_samples poses per target, (B, K, J)."""
         return run_reverse_diffusion(
@@ -165,4 +166,5 @@ class IKDiffusion(nn.Module):
             return_trajectory=return_trajectory,
             return_estimates=return_estimates,
             callback=callback,
+            guidance=guidance,
         )
