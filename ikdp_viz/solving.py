@@ -17,6 +17,7 @@ import torch
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import ChainView
+from ikdp_viz.constraint_scene import state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 
@@ -34,6 +35,7 @@ class SolveRequest:
     seed: int  # of the solve's torch.Generator
     arrival: float  # time.perf_counter() when the move (or settings change) arrived
     animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
+    constraints: tuple = ()  # ikdp constraints from the Constraints panel (constraint_controls.py)
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,8 @@ class Solved:
     view: SolveView | ChainView  # what is drawn (arm_kinds picks which)
     trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
     solve_seconds: float  # solver.solve alone
+    final_angles: np.ndarray | None = None  # (K, J) the returned joint values (refined when asked)
+    state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation, with constraints
 
 
 def stop_when(cancel: threading.Event):
@@ -69,9 +73,11 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         return_trajectory=True,
         return_estimates=True,
         callback=stop_when(cancel),
+        constraints=list(request.constraints),
     )
     if result.stopped:
         raise Cancelled
     solve_seconds = time.perf_counter() - started
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target)
-    return Solved(request, view, trail, solve_seconds)
+    violation = state_violation(request.solver, request.constraints, result) if request.constraints else None
+    return Solved(request, view, trail, solve_seconds, result.angles[0].numpy(), violation)
