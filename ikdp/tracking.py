@@ -3,8 +3,9 @@
 Each target is solved with a pull toward the previous solution (`NearPose`: every step's x̂0
 is moved part of the way to it), so the K samples gather on the branch the arm is already
 on; of those that reach the target (and meet the other constraints), the one nearest the
-previous pose is kept. Where none reaches it, the nearest of the K is kept anyway, so the
-path never jumps to another branch to chase a target it cannot reach.
+previous pose is kept. The previous solution refined toward the target is one more candidate
+(`warm_start`): where no sample reaches a target, the nearest candidate is kept, so the path
+does not jump to another branch to chase a target it cannot reach.
 """
 
 from __future__ import annotations
@@ -15,7 +16,11 @@ from dataclasses import dataclass
 import torch
 
 from ikdp.constraint_base import joint_difference
+from ikdp.guidance import ConstraintSet
 from ikdp.joint_constraints import NearPose
+from ikdp.refine import damped_least_squares
+
+WARM_START_STEPS = 10  # DLS steps of the warm-started candidate (at least the solve's refine_steps)
 
 
 @dataclass
@@ -40,6 +45,7 @@ def track(
     position_tolerance: float | None = None,
     rotation_tolerance: float = math.radians(1.0),
     constraints=(),
+    warm_start: bool = True,
     **solve_options,
 ) -> TrackResult:
     """path (P, target_dim), start_pose (J,) -> one solution per target, each near the one before.
@@ -47,7 +53,10 @@ def track(
     `weight`: NearPose's pull (0.3 let a Panda circle jump branches once, 3.6 rad; 0.6 kept every
     jump under 0.02 rad: docs/CONSTRAINTS.md); tolerances decide which samples count as reaching a target
     (position: 1e-3 of the arm's span by default; 1 mm on a Panda); `solve_options` go to
-    `solver.solve` (num_samples, sampler, steps, refine_steps, generator).
+    `solver.solve` (num_samples, sampler, steps, refine_steps, generator). `warm_start`: the
+    previous solution refined toward the target (damped least squares, as a warm-started numerical
+    solver would) is one more candidate; where no sample reaches a target, it keeps the arm where
+    it was, stretched toward it, instead of jumping to another branch (docs/CONSTRAINTS.md).
     """
     arm = solver.arm
     path = arm.validate_targets(path)
@@ -56,23 +65,41 @@ def track(
         raise ValueError(f"start_pose: expected shape ({arm.num_joints},), got {tuple(previous.shape)}")
     position_tolerance = 1e-3 * arm.span if position_tolerance is None else position_tolerance
     solutions, position_errors, rotation_errors, reached, jumps = [], [], [], [], []
+    partial = any(hasattr(item, "validate_targets") for item in constraints)
+    warm_task = None
+    if warm_start and constraints:
+        warm_task = ConstraintSet(arm, list(constraints), 1, 1).refine_task()
     for target in path:
         near = NearPose(previous, weight=weight)
         out = solver.solve(target[None], constraints=[near, *constraints], **solve_options)
-        ok = out.position_error[0] < position_tolerance
-        if out.rotation_error is not None:
-            ok &= out.rotation_error[0] < rotation_tolerance
-        met = out.constraints_met[0] if out.constraints_met is not None else torch.ones_like(ok)
+        angles, position_error = out.angles[0], out.position_error[0]
+        rotation_error = None if out.rotation_error is None else out.rotation_error[0]
+        met = out.constraints_met[0] if out.constraints_met is not None else torch.ones(len(angles), dtype=torch.bool)
+        if warm_start and not partial:  # one more candidate: the previous solution refined toward the target
+            goal = arm.clamp_to_workspace(target[None])[:, None]
+            steps = max(int(solve_options.get("refine_steps", 0)), WARM_START_STEPS)
+            warm = damped_least_squares(arm, previous[None, None], goal, steps=steps, task=warm_task)[0]
+            angles = torch.cat([angles, warm])
+            position_error = torch.cat([position_error, arm.tip_error(warm, target[None])])
+            if rotation_error is not None:
+                rotation_error = torch.cat([rotation_error, arm.rotation_error(warm, target[None])])
+            warm_met = torch.ones(1, dtype=torch.bool)
+            if warm_task is not None:
+                warm_met = ConstraintSet(arm, list(constraints), 1, 1).violation(warm[None])[0] == 0
+            met = torch.cat([met, warm_met])
+        ok = position_error < position_tolerance
+        if rotation_error is not None:
+            ok &= rotation_error < rotation_tolerance
         ok &= met
-        distance = joint_difference(arm, out.angles[0], previous).abs().amax(dim=-1)  # (K,)
+        distance = joint_difference(arm, angles, previous).abs().amax(dim=-1)  # (candidates,)
         pick = int(torch.where(ok, distance, distance + math.inf if ok.any() else distance).argmin())
-        if not ok.any():  # nothing reaches: keep the nearest sample that meets the constraints, if any does
+        if not ok.any():  # nothing reaches: keep the nearest candidate that meets the constraints, if any does
             pick = int(torch.where(met, distance, distance + 1e6).argmin())
-        chosen = out.angles[0, pick]
+        chosen = angles[pick]
         solutions.append(chosen)
-        position_errors.append(out.position_error[0, pick])
-        if out.rotation_error is not None:
-            rotation_errors.append(out.rotation_error[0, pick])
+        position_errors.append(position_error[pick])
+        if rotation_error is not None:
+            rotation_errors.append(rotation_error[pick])
         reached.append(bool(ok[pick]))
         jumps.append(float(distance[pick]))
         previous = chosen
