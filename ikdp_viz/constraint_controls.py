@@ -22,7 +22,7 @@ import threading
 import numpy as np
 import viser
 
-from ikdp_viz.constraint_scene import build_constraints, first_holding_state, follow_choice, overlay_segments
+from ikdp_viz.constraint_scene import build_constraints, first_holding_state, follow_choice, holds, overlay_segments
 from ikdp_viz.scene_writer import Call
 
 OBSTACLE_COLOR = (200, 60, 60)
@@ -187,7 +187,7 @@ class ConstraintControls:
     def _write_readout(self, solved, choice: int, jump: float | None) -> None:
         lines = []
         if solved.state_violation is not None:
-            met = int((solved.state_violation[-1] <= 0).sum())
+            met = int(holds(solved.state_violation[-1]).sum())
             first = first_holding_state(solved.state_violation[:, choice])
             states = len(solved.state_violation) - 1
             held = "never" if first is None else f"from state {first} of {states} (t = {solved.view.labels[first]})"
