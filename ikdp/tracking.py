@@ -5,7 +5,7 @@ is moved part of the way to it), so the K samples gather on the branch the arm i
 on; of those that reach the target (and meet the other constraints), the one nearest the
 previous pose is kept. The previous solution refined toward the target is one more candidate
 (`warm_start`): where no sample reaches a target, the nearest candidate is kept, so the path
-does not jump to another branch to chase a target it cannot reach.
+jumps less often to another branch to chase a target it cannot reach.
 """
 
 from __future__ import annotations
@@ -55,8 +55,10 @@ def track(
     (position: 1e-3 of the arm's span by default; 1 mm on a Panda); `solve_options` go to
     `solver.solve` (num_samples, sampler, steps, refine_steps, generator). `warm_start`: the
     previous solution refined toward the target (damped least squares, as a warm-started numerical
-    solver would) is one more candidate; where no sample reaches a target, it keeps the arm where
-    it was, stretched toward it, instead of jumping to another branch (docs/CONSTRAINTS.md).
+    solver would) is one more candidate; where no sample reaches a target it is usually the
+    nearest one, so the arm stays where it was, stretched toward it (on a Panda circle half out
+    of reach it halved the jumps over 0.1 rad, 56 to 29, but not the share reached:
+    docs/CONSTRAINTS.md).
     """
     arm = solver.arm
     path = arm.validate_targets(path)

@@ -1,4 +1,4 @@
-"""The Constraints folder in a real browser: a joint locked by a click, an obstacle dropped, follow mode on; no page error.
+"""The Constraints folder in a real browser: a joint locked by a click, an obstacle, follow mode; no page error.
 
 Every page error and every console message of type "error" is collected; none may appear.
 """
