@@ -242,3 +242,12 @@ def test_tracking_follows_a_path_on_one_continuous_solution(tiny_checkpoint):
     assert bool(result.reached.all())
     assert result.largest_jump < 0.2  # 0.065 rad of arc per target: no branch switch
     assert float(result.position_error.max()) < 1e-3 * solver.arm.span
+
+
+def test_obstacles_work_after_a_plain_solve_built_the_arms_constants_in_inference_mode(tiny_chain_checkpoint):
+    solver = ikdp.load(tiny_chain_checkpoint)  # a fresh arm: nothing cached yet
+    target = [[0.4, 0.1, 0.5, 0.0, 1.0, 0.0, 0.0]]
+    solver.solve(target, num_samples=2, sampler="ddim", steps=2)  # FK constants first built inside inference mode
+    out = solver.solve(target, num_samples=2, sampler="ddim", steps=2, refine_steps=1,
+                       constraints=[ikdp.Obstacles([[0.3, 0.0, 0.4]], [0.1])])  # fmt: skip
+    assert out.constraint_violation.shape == (1, 2)

@@ -76,3 +76,22 @@ def test_follow_mode_pulls_toward_the_last_pose_and_reads_the_largest_jump(app):
     assert app.panel.highlight.value != "best"  # the kept sample is the highlighted one
     assert "largest so far" in controls.readout.content
     assert controls.largest_jump >= 0.0
+
+
+def test_a_robot_gets_the_same_folder_with_its_joint_names_and_spheres(tiny_chain_checkpoint):
+    with running_app(ikdp.load(tiny_chain_checkpoint), solve_now=False, animation_seconds=0.0) as app:
+        app.panel.samples.value = 4
+        settle(app)
+        controls = app.constraint_controls
+        assert controls.lock_boxes[6].label == "lock panda_joint7"
+        controls.lock_values[6].value = 1.0
+        controls.lock_boxes[6].value = True
+        controls.add_obstacle(position=(0.3, 0.0, 0.4), radius=0.08)
+        settle(app)
+        assert app.writer.error is None, app.writer.error
+        names = [c.name for c in app.solved.request.constraints]
+        assert names == ["locked_joints", "obstacles"]
+        assert np.all(app.solved.final_angles[:, 6] == np.float32(1.0))
+        assert controls.overlay is not None
+        with pytest.raises(ValueError, match="outside its limits"):  # the number field's bounds aside
+            ikdp.LockedJoints({"panda_joint4": 0.5}).bind(app.solver.arm, 1, 1)
