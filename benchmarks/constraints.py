@@ -16,7 +16,9 @@ One run, one torch thread, every method on the same targets in the same run:
 3. Panda, tracking: circles of `track_radius` in a horizontal plane, `track_points` targets at a
    fixed orientation, from a start pose on the circle: largest joint jump between consecutive
    solutions and share solved; beside pytorch_kinematics warm-started from the previous solution.
-4. Planar N=4 (ikdp_n4) with one disc over a valid solution's middle bones, clear of the base and
+4. Panda, partial targets (position only; the hand's z axis free): share within 1 mm (and 1 degree
+   of the axis), beside random starts refined on the same partial residual.
+5. Planar N=4 (ikdp_n4) with one disc over a valid solution's middle bones, clear of the base and
    the target (a pose folded so that no disc fits is drawn again): the same shares as 1.
 Prints tables and writes benchmarks/results/constraints.json.
 """
@@ -62,7 +64,7 @@ class ConstraintBenchmarkConfig:
     track_points: int = 200  # targets per circle
     track_radius: float = 0.1  # metres
     track_weight: float = 0.6  # NearPose's pull while tracking
-    parts: tuple[str, ...] = ("obstacles", "locked", "tracking", "planar")
+    parts: tuple[str, ...] = ("obstacles", "locked", "tracking", "partial", "planar")
     seed: int = 0
     output: Path = field(default=RESULTS)
 
@@ -236,6 +238,48 @@ def locked_part(solver, config: ConstraintBenchmarkConfig) -> dict:
     return {"targets": len(targets), "rows": rows}
 
 
+def partial_part(solver, config: ConstraintBenchmarkConfig) -> dict:
+    """Position only and a free hand z axis: IKDP against random starts with the same partial refinement."""
+    arm = solver.arm
+    truth = arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed + 4))
+    targets = arm.end_effector(truth)
+    name, steps = parse_sampler(config.sampler)
+    options = {"num_samples": config.samples, "sampler": name, "steps": steps, "refine_steps": config.refine_steps}
+    parts = {}
+    for constraint in (ikdp.PositionOnly(), ikdp.FreeAxis(axis=(0.0, 0.0, 1.0))):
+        bound = constraint.bind(arm, len(targets), config.samples)
+
+        def valid_of(joints, bound=bound):
+            goals = targets[:, None].expand(-1, joints.shape[1], -1)
+            valid = arm.position_error(joints, goals) < 1e-3
+            axis_error = bound.rotation_error(joints, goals)
+            return valid if axis_error is None else valid & (axis_error < math.radians(1))
+
+        rows = {}
+        seconds, out = timed(
+            lambda constraint=constraint: solver.solve(
+                targets, constraints=[constraint], generator=torch.Generator().manual_seed(1), **options
+            )
+        )
+        rows[f"IKDP {config.sampler}, K={config.samples}, partial conditions + {config.refine_steps} DLS steps"] = row(
+            valid_of(out.angles), seconds
+        )
+        task = ConstraintSet(arm, [constraint], len(targets), config.samples).refine_task()
+        goals = targets[:, None].expand(-1, config.samples, -1)
+        for dls_steps in config.random_start_steps:
+            starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
+            starts = starts.unflatten(0, (len(targets), config.samples))
+            seconds, joints = timed(
+                lambda starts=starts, dls_steps=dls_steps, task=task, goals=goals: damped_least_squares(
+                    arm, starts, goals, steps=dls_steps, task=task
+                )
+            )
+            label = f"{config.samples} uniform random starts + {dls_steps} DLS steps on the partial residual"
+            rows[label] = row(valid_of(joints), seconds)
+        parts[constraint.name] = {"targets": len(targets), "rows": rows}
+    return parts
+
+
 def circle_path(arm, start: torch.Tensor, points: int, radius: float) -> torch.Tensor:
     """A horizontal circle through the start pose's hand, at its orientation, (points, 7)."""
     pose = arm.end_effector(start)
@@ -403,9 +447,9 @@ def print_rows(title: str, part: dict) -> None:
 
 def main(config: ConstraintBenchmarkConfig) -> dict:
     torch.set_num_threads(1)
-    unknown = sorted(set(config.parts) - {"obstacles", "locked", "tracking", "planar"})
+    unknown = sorted(set(config.parts) - {"obstacles", "locked", "tracking", "partial", "planar"})
     if unknown:
-        raise ValueError(f"parts: unknown {unknown}, expected obstacles, locked, tracking, planar")
+        raise ValueError(f"parts: unknown {unknown}, expected obstacles, locked, tracking, partial, planar")
     results: dict = {
         "config": {**asdict(config), "output": str(config.output)},
         "machine": machine_description(threads=1),
@@ -429,6 +473,10 @@ def main(config: ConstraintBenchmarkConfig) -> dict:
                     f"| {index} | {label} | {100 * values['solved_share']:.1f} % | {values['largest_jump_rad']:.3f} "
                     f"| {values['jumps_over_0.1_rad']} | {values['ms_per_target']:.1f} |"
                 )
+    if "partial" in config.parts:
+        results["partial"] = partial_part(solver, config)
+        for kind, part in results["partial"].items():
+            print_rows(f"Panda, partial target: {kind}", part)
     if "planar" in config.parts:
         results["planar"] = planar_part(config)
         print_rows(f"planar N=4 ({config.planar_checkpoint}), one disc over a valid solution", results["planar"])
