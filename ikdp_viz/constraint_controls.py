@@ -35,7 +35,8 @@ class ConstraintControls:
         self.server = server
         self.post = post  # the scene writer's post(): nodes are written on its thread
         self.on_change = on_change  # ask for a new solve
-        self.lock = threading.Lock()
+        self.lock = threading.Lock()  # guards `obstacles`
+        self.model_lock = threading.RLock()  # a rebuild for another model and a solve's readouts, one at a time
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
         self.largest_jump = 0.0
@@ -86,11 +87,12 @@ class ConstraintControls:
 
     def rebuild(self, solver) -> None:
         """Another model: a fresh folder for its joints, no obstacles, no last pose."""
-        self.clear_obstacles(ask=False)
-        self.post(Call(lambda writer: self._remove_overlay()))
-        self.folder.remove()
-        self.last_pose, self.largest_jump = None, 0.0
-        self.build(solver)
+        with self.model_lock:
+            self.clear_obstacles(ask=False)
+            self.post(Call(lambda writer: self._remove_overlay()))
+            self.folder.remove()
+            self.last_pose, self.largest_jump = None, 0.0
+            self.build(solver)
 
     def _on_lock(self, box, value) -> None:
         value.disabled = not box.value
@@ -167,8 +169,11 @@ class ConstraintControls:
 
     def after_solve(self, solved, panel) -> None:
         """Worker thread, once a solve is posted: keep the pose (follow: the nearest sample), write the readouts."""
-        if solved.final_angles is None:
-            return
+        with self.model_lock:
+            if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
+                self._after_solve(solved, panel)
+
+    def _after_solve(self, solved, panel) -> None:
         view = solved.view
         errors = np.asarray(getattr(view, "final_tip_error", getattr(view, "final_position_error", None)))
         following = bool(self.follow.value)
