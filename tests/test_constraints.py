@@ -251,3 +251,17 @@ def test_obstacles_work_after_a_plain_solve_built_the_arms_constants_in_inferenc
     out = solver.solve(target, num_samples=2, sampler="ddim", steps=2, refine_steps=1,
                        constraints=[ikdp.Obstacles([[0.3, 0.0, 0.4]], [0.1])])  # fmt: skip
     assert out.constraint_violation.shape == (1, 2)
+
+
+def test_a_robots_penetration_gradient_in_closed_form_matches_autograd():
+    arm = ikdp.load_robot("panda")
+    joints = arm.random_poses(64, generator=seeded(7)).double()
+    elbows = arm.forward_kinematics(joints)[:, 3:5].mean(dim=1)  # (64, 3): between elbow and forearm joints
+    bound = ikdp.Obstacles(elbows[:, None], 0.1).bind(arm, 64, 1)
+    depth, gradient = bound.penetration_and_gradient(joints, 0.01)
+    leaf = joints.clone().requires_grad_(True)
+    expected = bound.penetration(leaf, 0.01)
+    (autograd,) = torch.autograd.grad(expected.sum(), leaf)
+    assert bool((depth > 0).all())
+    assert torch.allclose(depth, expected.detach(), atol=1e-12)
+    assert torch.allclose(gradient, autograd, atol=1e-9)
