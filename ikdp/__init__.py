@@ -3,6 +3,15 @@
 from ikdp.arm import PlanarArm
 from ikdp.chain_arm import ChainArm
 from ikdp.checkpoint import CheckpointError
+from ikdp.constraints import (
+    FreeAxis,
+    LockedJoints,
+    NearPose,
+    Obstacles,
+    PositionOnly,
+    constraint_names,
+    make_constraint,
+)
 from ikdp.kinematics import (
     absolute_to_relative,
     forward_kinematics,
@@ -18,13 +27,20 @@ from ikdp.solver import Solver, SolveResult, load
 __all__ = [
     "ChainArm",
     "CheckpointError",
+    "FreeAxis",
+    "LockedJoints",
+    "NearPose",
+    "Obstacles",
+    "PositionOnly",
     "PlanarArm",
     "SolveResult",
     "Solver",
     "absolute_to_relative",
+    "constraint_names",
     "forward_kinematics",
     "load",
     "load_robot",
+    "make_constraint",
     "relative_to_absolute",
     "robot_names",
     "sampler_names",

@@ -283,30 +283,37 @@ class ChainArm:
     def _constants_like(self, like: torch.Tensor) -> dict:
         key = (like.dtype, like.device)
         if key not in self._constants:
-            # Carry each joint's frame in a basis whose z is the joint's axis (rotation P_j, axis = its
-            # third column): the joint's motion is then Rz(q) or a slide along z, applied to columns,
-            # and the step from joint j-1 to joint j is one constant matrix M_j = P_{j-1}^T R_j P_j.
-            bases = torch.stack([axis_basis(axis) for axis in self._axes])  # (J, 3, 3)
-            before = torch.cat([torch.eye(3, dtype=torch.float64)[None], bases[:-1]])  # P_{j-1}, P_{-1} = I
-            constants = {
-                # M_j^T: left-multiplying the stacked columns of F by it gives the columns of F M_j.
-                "steps_columns": (before.transpose(-1, -2) @ self._offsets[:, :3, :3] @ bases).transpose(-1, -2),
-                "translations": (before.transpose(-1, -2) @ self._offsets[:, :3, 3:]).squeeze(-1),  # (J, 3)
-                "bases": bases,
-                "ee_rotation_columns": (bases[-1].T @ self._ee_offset[:3, :3]).T,
-                "ee_translation": bases[-1].T @ self._ee_offset[:3, 3],
-                "limits": self._limits,
-                "continuous": self._continuous,
-                "link_offsets": self._link_offsets,
-                # made once per device: a host-to-device copy per call would break CUDA-graph capture
-                "prismatic": torch.tensor([kind == "prismatic" for kind in self.joint_types]),
-                "link_parents": torch.tensor(self.link_frames) + 1,  # -1 (base) -> row 0
-            }
-            self._constants[key] = {
-                name: value.to(device=like.device, dtype=like.dtype if value.is_floating_point() else value.dtype)
-                for name, value in constants.items()
-            }
+            # built as normal tensors even inside inference mode (the sampler's), so that autograd can use
+            # them later (obstacle guidance differentiates forward kinematics); inference mode reads them too
+            with torch.inference_mode(False):
+                self._constants[key] = self._build_constants(like)
         return self._constants[key]
+
+    def _build_constants(self, like: torch.Tensor) -> dict:
+        """The constant tensors forward kinematics multiplies by, in `like`'s dtype and device."""
+        # Carry each joint's frame in a basis whose z is the joint's axis (rotation P_j, axis = its
+        # third column): the joint's motion is then Rz(q) or a slide along z, applied to columns,
+        # and the step from joint j-1 to joint j is one constant matrix M_j = P_{j-1}^T R_j P_j.
+        bases = torch.stack([axis_basis(axis) for axis in self._axes])  # (J, 3, 3)
+        before = torch.cat([torch.eye(3, dtype=torch.float64)[None], bases[:-1]])  # P_{j-1}, P_{-1} = I
+        constants = {
+            # M_j^T: left-multiplying the stacked columns of F by it gives the columns of F M_j.
+            "steps_columns": (before.transpose(-1, -2) @ self._offsets[:, :3, :3] @ bases).transpose(-1, -2),
+            "translations": (before.transpose(-1, -2) @ self._offsets[:, :3, 3:]).squeeze(-1),  # (J, 3)
+            "bases": bases,
+            "ee_rotation_columns": (bases[-1].T @ self._ee_offset[:3, :3]).T,
+            "ee_translation": bases[-1].T @ self._ee_offset[:3, 3],
+            "limits": self._limits,
+            "continuous": self._continuous,
+            "link_offsets": self._link_offsets,
+            # made once per device: a host-to-device copy per call would break CUDA-graph capture
+            "prismatic": torch.tensor([kind == "prismatic" for kind in self.joint_types]),
+            "link_parents": torch.tensor(self.link_frames) + 1,  # -1 (base) -> row 0
+        }
+        return {
+            name: value.to(device=like.device, dtype=like.dtype if value.is_floating_point() else value.dtype)
+            for name, value in constants.items()
+        }
 
     def _as_joints(self, joints) -> torch.Tensor:
         joints = torch.as_tensor(joints)

@@ -16,7 +16,7 @@ from ikdp.arm import PlanarArm, arm_from_config
 from ikdp.denoisers import DenoiserConfig, build_denoiser
 from ikdp.representation import AngleRepresentation
 from ikdp.samplers import Sampler, make_sampler
-from ikdp.sampling import StepCallback, Trajectory, run_reverse_diffusion
+from ikdp.sampling import Guidance, StepCallback, Trajectory, run_reverse_diffusion
 from ikdp.schedule import PREDICTION_KINDS, DiffusionSchedule, ScheduleConfig
 
 # The FK-consistency term weighs a rotation miss of 1 degree like a position miss of about 0.25 % of the
@@ -155,6 +155,7 @@ class IKDiffusion(nn.Module):
         return_estimates: bool = False,
         callback: StepCallback | None = None,
         initial_noise: torch.Tensor | None = None,
+        guidance: Guidance | None = None,
     ) -> Trajectory:
         """Reverse diffusion, targets: (B, target_dim) -> K = num_samples poses per target, (B, K, J).
 
@@ -173,4 +174,5 @@ class IKDiffusion(nn.Module):
             return_estimates=return_estimates,
             callback=callback,
             initial_noise=None if initial_noise is None else initial_noise.to(targets),
+            guidance=guidance,
         )

@@ -12,6 +12,7 @@ computes it as a feature at every diffusion step, where each tensor op counts.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import torch
 
@@ -68,6 +69,19 @@ def clamp_task_error(error: torch.Tensor, position_dim: int, max_position: float
     return torch.cat((position, rotation), dim=-1)
 
 
+class RefineTask(Protocol):
+    """What damped least squares drives to zero in place of the arm's end-effector error (ikdp/constraints.py)."""
+
+    def error(self, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+        """(..., J), (..., target_dim) -> the task error (..., E): what `better_of` compares."""
+
+    def linearize(self, joints: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The clamped task error (..., E) and its Jacobian (..., E, J): a small step dq changes it by -J dq."""
+
+    def hold(self, joints: torch.Tensor) -> torch.Tensor:
+        """(..., J) after a step -> the same with every held (locked) joint put back exactly."""
+
+
 def damped_least_squares(
     arm,
     joints: torch.Tensor,
@@ -76,6 +90,7 @@ def damped_least_squares(
     steps: int = 5,
     damping: float = 1e-3,
     max_miss_fraction: float = 0.2,
+    task: RefineTask | None = None,
 ) -> torch.Tensor:
     """joints (..., J), targets (..., target_dim) -> refined joints (..., J), within the arm's limits.
 
@@ -83,7 +98,8 @@ def damped_least_squares(
     clamped), so every refined pose respects the limits. Where a joint already on a limit is
     pushed further out (`arm.blocked_by_limits`), the step is also solved without it, and each
     pose keeps the better of the two (`better_of`). Runs in float64: the last steps
-    correct errors near float32's resolution.
+    correct errors near float32's resolution. A `task` replaces the end-effector error and its
+    Jacobian (constraints: partial targets, obstacles, locked joints).
     """
     if not isinstance(steps, int) or steps < 0:
         raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
@@ -92,19 +108,24 @@ def damped_least_squares(
     targets = targets.double()
     max_position = max_miss_fraction * arm.span
     for _ in range(steps):
-        error = clamp_task_error(arm.task_error(joints, targets), arm.position_dim, max_position, math.pi / 4)
-        jacobian = arm.jacobian(joints)
+        if task is None:
+            error = clamp_task_error(arm.task_error(joints, targets), arm.position_dim, max_position, math.pi / 4)
+            jacobian = arm.jacobian(joints)
+        else:
+            error, jacobian = task.linearize(joints, targets)
         step = dls_step(jacobian, error, damping**2)
         moved = arm.normalize_joints(joints + step)
         blocked = arm.blocked_by_limits(joints, step)
         if blocked is not None and bool(blocked.any()):
             held_step = dls_step(jacobian * ~blocked[..., None, :], error, damping**2)  # blocked columns zeroed
-            moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step))
-        joints = moved
+            moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
+        joints = moved if task is None else task.hold(moved)
     return joints.to(dtype)
 
 
-def better_of(arm, targets: torch.Tensor, clamped: torch.Tensor, without_blocked: torch.Tensor) -> torch.Tensor:
+def better_of(
+    arm, targets: torch.Tensor, clamped: torch.Tensor, without_blocked: torch.Tensor, task: RefineTask | None = None
+) -> torch.Tensor:
     """Per pose, whichever candidate misses the target by less (the task error's norm, what DLS minimises).
 
     `clamped` took the full step, then the limits clipped it; `without_blocked` solved the step
@@ -114,6 +135,7 @@ def better_of(arm, targets: torch.Tensor, clamped: torch.Tensor, without_blocked
     1 mm and 1 degree, but left some poses stalled that the clamped step moved on; the better
     of the two kept 99.8 % with more valid poses per target (docs/ROBOTS.md).
     """
-    clamped_miss = arm.task_error(clamped, targets).norm(dim=-1)
-    without_miss = arm.task_error(without_blocked, targets).norm(dim=-1)
+    error = arm.task_error if task is None else task.error
+    clamped_miss = error(clamped, targets).norm(dim=-1)
+    without_miss = error(without_blocked, targets).norm(dim=-1)
     return torch.where((without_miss < clamped_miss)[..., None], without_blocked, clamped)

@@ -10,7 +10,9 @@ record, call back. What makes it fast is what it does not do per step:
   into buffers allocated once per solve, with the same ops as its plain path.
 
 A `callback(step_index, timestep, state, estimate)` sees every step as joint
-values (B, K, J) and stops the run by returning True.
+values (B, K, J) and stops the run by returning True. A `guidance` (ikdp/guidance.py:
+constraints at sampling time) may rewrite x̂0 before the sampler uses it and the next
+state after it (inpainting); without one the loop is unchanged.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
+from typing import Protocol
 
 import torch
 
@@ -28,6 +31,16 @@ from ikdp.schedule import DiffusionSchedule
 PRECOMPUTE_CONDITION_LIMIT = 16 * 2**20  # floats; above this the condition is computed per step
 
 StepCallback = Callable[[int, int, torch.Tensor, torch.Tensor], "bool | None"]
+
+
+class Guidance(Protocol):
+    """What the loop asks of sampling-time constraints; both methods edit their tensor in place."""
+
+    def adjust_estimate(self, index: int, clean: torch.Tensor) -> None:
+        """x̂0 (M, D) at step `index`, before the sampler steps with it."""
+
+    def adjust_state(self, index: int, state: torch.Tensor, generator: torch.Generator | None) -> None:
+        """The state (M, D) step `index` landed on."""
 
 
 @dataclass
@@ -71,6 +84,7 @@ def run_reverse_diffusion(
     callback: StepCallback | None = None,
     conditions: torch.Tensor | None = None,
     initial_noise: torch.Tensor | None = None,
+    guidance: Guidance | None = None,
 ) -> Trajectory:
     """targets: (B, C) conditions -> K = num_samples poses per target, (B, K, J).
 
@@ -122,10 +136,14 @@ def run_reverse_diffusion(
         clean = schedule.predict_clean(output, t, x, prediction)
         if project:
             clean = representation.project(clean)
+        if guidance is not None:
+            guidance.adjust_estimate(index, clean)
         if estimates is not None:
             estimates[index].copy_(clean)
         next_x = states[index + 1] if return_trajectory else states[(index + 1) % 2]
         x = sampler.step(index, x, clean, out=next_x, generator=generator)
+        if guidance is not None:
+            guidance.adjust_state(index, x, generator)
         steps_run = index + 1
         if callback is not None:
             state_joints = representation.decode(x).unflatten(0, unflatten)

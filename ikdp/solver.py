@@ -6,18 +6,22 @@ out = solver.solve(targets, num_samples=16)
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import torch
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint
+from ikdp.constraint_base import Constraint
+from ikdp.guidance import ConstraintSet
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp.sampling import StepCallback
 from ikdp.shipped import shipped_checkpoint
+from ikdp.tracking import TrackResult, track
 
 
 @dataclass
@@ -31,7 +35,13 @@ class SolveResult:
     raw_tip_error: torch.Tensor  # (B, K) tip error of `raw_angles`
     estimates: torch.Tensor | None = None  # (S, B, K, J) the denoiser's x̂0 at each step, when asked
     stopped: bool = False  # True when the callback stopped the solve; the poses are the state reached then
-    rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets of spatial arms
+    rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets (free axis: the axis's miss)
+    constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
+
+    @property
+    def constraints_met(self) -> torch.Tensor | None:
+        """(B, K) True where every constraint holds (locked joints exactly, no link inside an obstacle)."""
+        return None if self.constraint_violation is None else self.constraint_violation == 0
 
     @property
     def position_error(self) -> torch.Tensor:
@@ -85,6 +95,7 @@ class Solver:
         return_estimates: bool = False,
         callback: StepCallback | None = None,
         initial_noise: torch.Tensor | None = None,
+        constraints: Sequence[Constraint] = (),
     ) -> SolveResult:
         """K poses for each of B targets, (B, target_dim) -> (B, K, J).
 
@@ -100,9 +111,12 @@ class Solver:
         `initial_noise`: the pure noise x_T the samplers start from, (B, K, D) with D =
         `solver.noise_dim`; the same x_T given to DDPM and to DDIM compares the two on equal
         terms. None draws it from `generator` (as the first thing drawn).
+        `constraints` (ikdp.constraint_names(): locked joints, a pose to stay near, obstacles,
+        partial targets) bend the reverse process toward them and are kept by the refinement;
+        `constraint_violation` then says where they hold (docs/CONSTRAINTS.md).
         """
         arm = self.arm
-        targets = arm.validate_targets(targets).to(self.device)
+        targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
         if not isinstance(num_samples, int) or num_samples < 1:
             raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
         if sampler not in SAMPLERS:
@@ -111,39 +125,84 @@ class Solver:
             raise ValueError(f"refine_steps: expected a non-negative integer, got {refine_steps!r}")
         reachable = arm.is_reachable(targets)
         conditions = arm.clamp_to_workspace(targets)
+        batch = len(targets)
+        bound = ConstraintSet(arm, constraints, batch, num_samples) if constraints else None
+        sample_targets, per_target = conditions, num_samples
+        if bound is not None and bound.partial is not None:  # each sample its own full pose to aim at
+            sample_targets, per_target = bound.partial.conditions(conditions, num_samples, generator), 1
+            if callback is not None:
+                callback = regroup_callback(callback, batch, num_samples)
+        guidance = None
+        if bound is not None:
+            rows = sample_targets.repeat_interleave(per_target, dim=0)
+            guidance = bound.guidance(self.model.representation, self.model.sampler(sampler, steps), rows)
         result = self.model.sample(
-            conditions,
-            num_samples=num_samples,
+            sample_targets,
+            num_samples=per_target,
             sampler=sampler,
             steps=steps,
             generator=generator,
             return_trajectory=return_trajectory,
             return_estimates=return_estimates,
             callback=callback,
-            initial_noise=initial_noise,
+            # a partial target gives each sample a row of its own: x_T (B, K, D) as (B * K, 1, D)
+            initial_noise=initial_noise
+            if initial_noise is None or per_target == num_samples
+            else initial_noise.reshape(batch * num_samples, 1, -1),
+            guidance=guidance,
         )
-        raw = result.headings  # (B, K, J)
+        raw = result.headings.reshape(batch, num_samples, -1)  # (B, K, J)
+        if bound is not None:
+            raw = bound.hold(raw)
         per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
         raw_error = arm.tip_error(raw, per_sample_targets)
         angles, error = raw, raw_error
         if refine_steps and not result.stopped:
             # aim at the nearest reachable point: for a target beyond reach that is the stretched arm
-            goals = conditions[:, None].expand(-1, num_samples, -1)
-            angles = damped_least_squares(arm, raw, goals, steps=refine_steps)
+            goals = sample_targets.reshape(batch, num_samples, -1) if per_target == 1 else conditions[:, None]
+            goals = goals.expand(-1, num_samples, -1)
+            task = None if bound is None else bound.refine_task()
+            angles = damped_least_squares(arm, raw, goals, steps=refine_steps, task=task)
             error = arm.tip_error(angles, per_sample_targets)
-        rotation_error = arm.rotation_error(angles, per_sample_targets) if arm.target_dim == 7 else None
+        rotation_error = None
+        if bound is not None and bound.partial is not None:
+            rotation_error = bound.partial.rotation_error(angles, per_sample_targets)
+        elif arm.target_dim == 7:
+            rotation_error = arm.rotation_error(angles, per_sample_targets)
+        states, estimates = result.states, result.estimates
+        if per_target == 1:  # (S, B * K, 1, J) -> (S, B, K, J)
+            states = None if states is None else states.reshape(states.shape[0], batch, num_samples, -1)
+            estimates = None if estimates is None else estimates.reshape(estimates.shape[0], batch, num_samples, -1)
         return SolveResult(
             angles=angles,
             tip_error=error,
-            trajectory=result.states,
+            trajectory=states,
             timesteps=result.timesteps,
             reachable=reachable,
             raw_angles=raw,
             raw_tip_error=raw_error,
-            estimates=result.estimates,
+            estimates=estimates,
             stopped=result.stopped,
             rotation_error=rotation_error,
+            constraint_violation=None if bound is None else bound.violation(angles),
         )
+
+    def track(self, path, start_pose, **options) -> TrackResult:
+        """One continuous solution per target of a path (P, target_dim), starting from `start_pose` (J,).
+
+        Each target is solved with a pull toward the previous solution and the nearest sample that
+        reaches it is kept (ikdp/tracking.py); `options`: weight, tolerances, constraints and solve's.
+        """
+        return track(self, path, start_pose, **options)
+
+
+def regroup_callback(callback: StepCallback, batch: int, num_samples: int) -> StepCallback:
+    """A callback written for (B, K, J) states, called by a loop that runs B * K targets of one sample."""
+
+    def regrouped(index, t, state, estimate):
+        return callback(index, t, state.reshape(batch, num_samples, -1), estimate.reshape(batch, num_samples, -1))
+
+    return regrouped
 
 
 def model_from_checkpoint(payload: dict, source: str = "<memory>") -> IKDiffusion:

@@ -27,6 +27,7 @@ from ikdp.checkpoint import read_checkpoint
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene_writer import ChainSceneWriter
+from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel, highlight_options
 from ikdp_viz.scene_writer import (
     Call,
@@ -106,6 +107,7 @@ class VizApp:
         self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self._chosen_steps = int(self.panel.steps.value)  # the steps a sampler that can skip some takes
         self._showing_steps = False  # _show_steps is moving the slider
+        self.constraint_controls = ConstraintControls(server, solver, self.writer.post, self.request_solve)
         self._wire_panel()
         self._show_steps()
         server.on_client_connect(lambda client: self.refresh_checkpoints())
@@ -176,12 +178,16 @@ class VizApp:
     def request_solve(self, arrival: float | None = None, *, animate: bool = True) -> int:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""
         with self.session.lock:
-            request = self.session.request(self.panel, arrival=arrival, animate=animate)
+            constraints = self.constraint_controls.constraints()
+            request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints)
             return self.worker.submit(lambda cancel: solve(request, cancel), self._solved, self._failed)
 
     def _solved(self, ticket: int, solved: Solved) -> None:
         """Worker thread: hand the finished solve to the writer."""
-        self.writer.post(ShowSolve(solved, newest=self.worker.is_newest(ticket)))
+        newest = self.worker.is_newest(ticket)
+        self.writer.post(ShowSolve(solved, newest=newest))
+        if newest:
+            self.constraint_controls.after_solve(solved, self.panel)
 
     def _failed(self, ticket: int, error: BaseException) -> None:
         self.writer.post(ShowError(f"{type(error).__name__}: {error}"))
@@ -472,6 +478,7 @@ class VizApp:
         with self.session.lock:
             previous = self.session.target
             self.session.solver = solver
+            self.constraint_controls.rebuild(solver)
             self.session.target = initial_target(solver, previous)
             self.writer.post(NewModel(solver, self.session.target))
             self.panel.model_text.content = self._model_description()

@@ -43,7 +43,9 @@ class Session:
         self.target, self.target_clamped = target, clamped
         return target, clamped, changed
 
-    def request(self, panel: Panel, *, arrival: float | None = None, animate: bool = True) -> SolveRequest:
+    def request(
+        self, panel: Panel, *, arrival: float | None = None, animate: bool = True, constraints: tuple = ()
+    ) -> SolveRequest:
         """A solve of the current target with the panel's settings (a new seed first, if the panel asks)."""
         if panel.new_seed.value:
             panel.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
@@ -61,6 +63,7 @@ class Session:
             arrival=time.perf_counter() if arrival is None else arrival,
             animate=animate,
             **compare_settings(panel, sampler),
+            constraints=tuple(constraints),
         )
 
 

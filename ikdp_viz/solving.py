@@ -17,6 +17,7 @@ import torch
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import ChainView
+from ikdp_viz.constraint_scene import state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 
@@ -36,6 +37,7 @@ class SolveRequest:
     animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
     compare_sampler: str | None = None  # also solve with this sampler from the same x_T (compare.py); None: not
     compare_steps: int | None = None  # its number of steps (None: all T)
+    constraints: tuple = ()  # ikdp constraints from the Constraints panel (constraint_controls.py)
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,8 @@ class Solved:
     solve_seconds: float  # solver.solve alone
     compare: SolveView | None = None  # the same noise through request.compare_sampler (planar arms)
     compare_trail: np.ndarray | None = None  # its trail points, as trail_points
+    final_angles: np.ndarray | None = None  # (K, J) the returned joint values (refined when asked)
+    state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation, with constraints
 
 
 def stop_when(cancel: threading.Event):
@@ -77,6 +81,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         return_estimates=True,
         callback=stop_when(cancel),
         initial_noise=noise,
+        constraints=list(request.constraints),
     )
     if result.stopped:
         raise Cancelled
@@ -93,4 +98,5 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         if other.stopped:
             raise Cancelled
         compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
-    return Solved(request, view, trail, solve_seconds, compare, compare_trail)
+    violation = state_violation(request.solver, request.constraints, result) if request.constraints else None
+    return Solved(request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation)

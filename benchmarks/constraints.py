@@ -1,0 +1,490 @@
+"""Constraints at sampling time, measured (issue 20): obstacles, locked joints, tracking, a planar disc.
+
+    OMP_NUM_THREADS=1 python benchmarks/constraints.py --targets 1000
+
+One run, one torch thread, every method on the same targets in the same run:
+1. Panda, obstacles: held-out pose targets (FK of joint values uniform within the limits),
+   each with 2 spheres of radius 5-10 cm centred within 3 cm of the straight segments between
+   the elbow joints of that valid solution (joints 3 to 6), so that solution is blocked; spheres
+   touching the links the target pins down (base, shoulder, wrist, hand) are drawn again.
+   Share of targets with a collision-free solution within 1 mm and 1 degree, valid solutions
+   per target and time per target: IKDP K=16 + refinement (guided, and unguided with the same
+   filter), 16 uniform random starts with the same constrained refinement, and pytorch_kinematics
+   PseudoInverseIK (16 retries, 30 iterations) with the same collision filter (the link spheres of
+   ikdp/link_spheres.py). "Solved by any method" bounds how many targets the spheres leave open.
+2. Panda, joints 1 and 7 locked at the valid solution's values: share solved, locked joints moved.
+3. Panda, tracking: circles of `track_radius` in a horizontal plane, `track_points` targets at a
+   fixed orientation, from a start pose on the circle: largest joint jump between consecutive
+   solutions and share solved; beside pytorch_kinematics warm-started from the previous solution.
+4. Panda, partial targets (position only; the hand's z axis free): share within 1 mm (and 1 degree
+   of the axis), beside random starts refined on the same partial residual.
+5. Planar N=4 (ikdp_n4) with one disc over a valid solution's middle bones, clear of the base and
+   the target (a pose folded so that no disc fits is drawn again): the same shares as 1.
+Prints tables and writes benchmarks/results/constraints.json.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import torch
+import tyro
+
+import ikdp
+from ikdp.evaluation.machine import machine_description
+from ikdp.guidance import ConstraintSet
+from ikdp.link_spheres import link_spheres
+from ikdp.refine import damped_least_squares
+
+RESULTS = Path(__file__).resolve().parent / "results" / "constraints.json"
+READY_POSE = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)  # Franka's "ready" configuration
+PLACEMENT_ATTEMPTS = 100  # disc placements tried on one planar pose before the pose is drawn again
+PINNED_LINKS = ("panda_link0", "panda_link1", "panda_link6", "panda_link7", "panda_hand")  # fixed by the target
+
+
+@dataclass(frozen=True)
+class ConstraintBenchmarkConfig:
+    checkpoint: str = "ikdp_panda"  # the Panda pose model
+    planar_checkpoint: str = "ikdp_n4"  # the planar model of part 4
+    targets: int = 1000  # Panda targets of parts 1 and 2 (a 2-core CPU: fewer when time is short)
+    planar_targets: int = 1000  # planar targets of part 4
+    samples: int = 16  # K
+    refine_steps: int = 5  # DLS steps after sampling
+    sampler: str = "dpmpp2m:10"  # name[:steps] of IKDP's sampler
+    planar_sampler: str = "dpmpp2m:10"
+    random_start_steps: tuple[int, ...] = (5, 10, 20)  # constrained DLS steps from 16 uniform random starts
+    pk_retries: int = 16
+    pk_iterations: int = 30
+    track_circles: int = 3  # circles tracked: the ready pose first, then random starts
+    track_points: int = 200  # targets per circle
+    track_radius: float = 0.1  # metres
+    track_weight: float = 0.6  # NearPose's pull while tracking
+    parts: tuple[str, ...] = ("obstacles", "locked", "tracking", "partial", "planar")
+    seed: int = 0
+    output: Path = field(default=RESULTS)
+
+
+def parse_sampler(text: str) -> tuple[str, int | None]:
+    name, _, steps = text.partition(":")
+    return name, int(steps) if steps else None
+
+
+def timed(run):
+    started = time.perf_counter()
+    result = run()
+    return time.perf_counter() - started, result
+
+
+def within_pose_tolerance(arm, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+    """joints (B, K, J) -> (B, K) within 1 mm and 1 degree of the pose targets (B, 7)."""
+    goals = targets[:, None].expand(-1, joints.shape[1], -1)
+    return (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
+
+
+def row(valid: torch.Tensor, seconds: float, **extra) -> dict:
+    """valid (B, K) -> the measured row: share of targets solved, valid solutions per target, ms per target."""
+    return {
+        "success_share": float(valid.any(dim=1).double().mean()),
+        "valid_per_target": float(valid.sum(dim=1).double().mean()),
+        "ms_per_target": 1000 * seconds / len(valid),
+        **extra,
+    }
+
+
+def place_spheres(arm, truth: torch.Tensor, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Two spheres per valid solution (B, J) near its elbow segments, clear of the links the target pins."""
+    spheres = link_spheres(arm)
+    world = spheres.world_centers(arm, truth)  # (B, S, 3)
+    radii = torch.tensor(spheres.radii)
+    pinned = torch.tensor([arm.link_names[index] in PINNED_LINKS for index in spheres.link_indices])
+    joints = arm.forward_kinematics(truth)[:, 2:6]  # (B, 4, 3) joints 3..6: the upper arm and forearm
+    centers, sizes = torch.zeros(len(truth), 2, 3), torch.zeros(len(truth), 2)
+    for index in range(len(truth)):
+        placed = 0
+        while placed < 2:
+            segment = int(torch.randint(3, (1,), generator=generator))
+            along = torch.rand((), generator=generator)
+            start, end = joints[index, segment], joints[index, segment + 1]
+            center = start + along * (end - start) + (torch.rand(3, generator=generator) * 2 - 1) * 0.03
+            radius = 0.05 + 0.05 * torch.rand((), generator=generator)
+            gap = (world[index, pinned] - center).norm(dim=-1) - radii[pinned] - radius
+            if bool((gap > 0).all()):
+                centers[index, placed], sizes[index, placed] = center, radius
+                placed += 1
+    return centers, sizes
+
+
+@functools.cache
+def pk_chain(arm):
+    import pytorch_kinematics as pk
+
+    return pk, pk.build_serial_chain_from_urdf(Path(arm.urdf_path).read_bytes(), arm.ee_link)
+
+
+def run_pseudo_inverse(arm, targets: torch.Tensor, starts: torch.Tensor, iterations: int) -> tuple[float, torch.Tensor]:
+    """PseudoInverseIK from `starts` (R, J) for every target, or (B, R, J) one set per target -> (B, R, J)."""
+    pk, chain = pk_chain(arm)
+    solver = pk.PseudoInverseIK(
+        chain,
+        retry_configs=starts.reshape(-1, arm.num_joints),
+        joint_limits=arm.joint_limits,
+        max_iterations=iterations,
+        pos_tolerance=1e-3,
+        rot_tolerance=math.radians(1),
+        early_stopping_any_converged=True,
+    )
+    goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:])
+    seconds, solution = timed(lambda: solver.solve(goal))
+    return seconds, solution.solutions.detach().float()
+
+
+def obstacles_part(solver, config: ConstraintBenchmarkConfig) -> dict:
+    arm = solver.arm
+    generator = torch.Generator().manual_seed(config.seed)
+    truth = arm.random_poses(config.targets, generator=generator)
+    targets = arm.end_effector(truth)
+    centers, radii = place_spheres(arm, truth, generator)
+    obstacle = ikdp.Obstacles(centers, radii)
+    check = ConstraintSet(arm, [obstacle], len(targets), config.samples)
+    name, steps = parse_sampler(config.sampler)
+    options = {"num_samples": config.samples, "sampler": name, "steps": steps, "refine_steps": config.refine_steps}
+    rows, solved = {}, {}
+
+    def record(label: str, seconds: float, joints: torch.Tensor) -> None:
+        valid = within_pose_tolerance(arm, joints, targets) & (check.violation(joints) == 0)
+        rows[label] = row(valid, seconds)
+        solved[label] = valid.any(dim=1)
+
+    label = f"IKDP {config.sampler}, K={config.samples}, guided + {config.refine_steps} constrained DLS steps"
+    seconds, out = timed(
+        lambda: solver.solve(targets, constraints=[obstacle], generator=torch.Generator().manual_seed(1), **options)
+    )
+    record(label, seconds, out.angles)
+    label = f"IKDP {config.sampler}, K={config.samples}, unguided + {config.refine_steps} DLS steps, filtered"
+    seconds, out = timed(lambda: solver.solve(targets, generator=torch.Generator().manual_seed(1), **options))
+    record(label, seconds, out.angles)
+    goals = targets[:, None].expand(-1, config.samples, -1)
+    for dls_steps in config.random_start_steps:
+        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
+        starts = starts.unflatten(0, (len(targets), config.samples))
+        seconds, joints = timed(
+            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(
+                arm, starts, goals, steps=dls_steps, task=check.refine_task()
+            )
+        )
+        record(f"{config.samples} uniform random starts + {dls_steps} constrained DLS steps", seconds, joints)
+    try:
+        retry = arm.random_poses(config.pk_retries, generator=torch.Generator().manual_seed(config.seed + 9))
+        seconds, joints = run_pseudo_inverse(arm, targets, retry, config.pk_iterations)
+        label = f"pytorch_kinematics PseudoInverseIK, {config.pk_retries} retries, {config.pk_iterations} iterations"
+        valid = within_pose_tolerance(arm, joints, targets)
+        valid &= ConstraintSet(arm, [obstacle], len(targets), joints.shape[1]).violation(joints) == 0
+        rows[label] = row(valid, seconds)
+        solved[label] = valid.any(dim=1)
+    except ImportError:
+        pass
+    any_method = torch.stack(list(solved.values())).any(dim=0)
+    return {
+        "targets": len(targets),
+        "rows": rows,
+        "solved_by_any_method": float(any_method.double().mean()),
+        "blocked_ground_truth_share": float(
+            (ConstraintSet(arm, [obstacle], len(targets), 1).violation(truth[:, None]) > 0).double().mean()
+        ),
+    }
+
+
+def locked_part(solver, config: ConstraintBenchmarkConfig) -> dict:
+    arm = solver.arm
+    truth = arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed + 1))
+    targets = arm.end_effector(truth)
+    values = {"panda_joint1": truth[:, 0].tolist(), "panda_joint7": truth[:, 6].tolist()}
+    name, steps = parse_sampler(config.sampler)
+    options = {"num_samples": config.samples, "sampler": name, "steps": steps, "refine_steps": config.refine_steps}
+    rows = {}
+
+    def moved(joints: torch.Tensor) -> float:
+        return float((joints[..., [0, 6]] - truth[:, None, [0, 6]]).abs().max())
+
+    for repaint in (True, False):
+        lock = ikdp.LockedJoints(values, repaint=repaint)
+        seconds, out = timed(
+            lambda lock=lock: solver.solve(
+                targets, constraints=[lock], generator=torch.Generator().manual_seed(1), **options
+            )
+        )
+        label = f"IKDP {config.sampler}, K={config.samples}, " + (
+            "inpainted (x̂0 and states, RePaint)" if repaint else "inpainted (x̂0 only)"
+        )
+        valid = within_pose_tolerance(arm, out.angles, targets)
+        rows[label] = row(valid, seconds, locked_joints_moved_rad=moved(out.angles))
+    check = ConstraintSet(arm, [ikdp.LockedJoints(values)], len(targets), config.samples)
+    goals = targets[:, None].expand(-1, config.samples, -1)
+    for dls_steps in config.random_start_steps:
+        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
+        starts = check.hold(starts.unflatten(0, (len(targets), config.samples)))
+        seconds, joints = timed(
+            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(
+                arm, starts, goals, steps=dls_steps, task=check.refine_task()
+            )
+        )
+        label = f"{config.samples} uniform random starts (locked joints set) + {dls_steps} DLS steps, locked columns"
+        rows[label] = row(within_pose_tolerance(arm, joints, targets), seconds, locked_joints_moved_rad=moved(joints))
+    return {"targets": len(targets), "rows": rows}
+
+
+def partial_part(solver, config: ConstraintBenchmarkConfig) -> dict:
+    """Position only and a free hand z axis: IKDP against random starts with the same partial refinement."""
+    arm = solver.arm
+    truth = arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed + 4))
+    targets = arm.end_effector(truth)
+    name, steps = parse_sampler(config.sampler)
+    options = {"num_samples": config.samples, "sampler": name, "steps": steps, "refine_steps": config.refine_steps}
+    parts = {}
+    for constraint in (ikdp.PositionOnly(), ikdp.FreeAxis(axis=(0.0, 0.0, 1.0))):
+        bound = constraint.bind(arm, len(targets), config.samples)
+
+        def valid_of(joints, bound=bound):
+            goals = targets[:, None].expand(-1, joints.shape[1], -1)
+            valid = arm.position_error(joints, goals) < 1e-3
+            axis_error = bound.rotation_error(joints, goals)
+            return valid if axis_error is None else valid & (axis_error < math.radians(1))
+
+        rows = {}
+        seconds, out = timed(
+            lambda constraint=constraint: solver.solve(
+                targets, constraints=[constraint], generator=torch.Generator().manual_seed(1), **options
+            )
+        )
+        rows[f"IKDP {config.sampler}, K={config.samples}, partial conditions + {config.refine_steps} DLS steps"] = row(
+            valid_of(out.angles), seconds
+        )
+        task = ConstraintSet(arm, [constraint], len(targets), config.samples).refine_task()
+        goals = targets[:, None].expand(-1, config.samples, -1)
+        for dls_steps in config.random_start_steps:
+            starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
+            starts = starts.unflatten(0, (len(targets), config.samples))
+            seconds, joints = timed(
+                lambda starts=starts, dls_steps=dls_steps, task=task, goals=goals: damped_least_squares(
+                    arm, starts, goals, steps=dls_steps, task=task
+                )
+            )
+            label = f"{config.samples} uniform random starts + {dls_steps} DLS steps on the partial residual"
+            rows[label] = row(valid_of(joints), seconds)
+        parts[constraint.name] = {"targets": len(targets), "rows": rows}
+    return parts
+
+
+def circle_path(arm, start: torch.Tensor, points: int, radius: float) -> torch.Tensor:
+    """A horizontal circle through the start pose's hand, at its orientation, (points, 7)."""
+    pose = arm.end_effector(start)
+    angles = torch.linspace(0, 2 * math.pi, points + 1)[:-1]
+    center = pose[:3] - torch.tensor([radius, 0.0, 0.0])
+    circle = center + radius * torch.stack([angles.cos(), angles.sin(), torch.zeros(points)], dim=-1)
+    return torch.cat([circle, pose[3:].expand(points, 4)], dim=-1)
+
+
+def track_with_pseudo_inverse(arm, path: torch.Tensor, start: torch.Tensor, iterations: int) -> dict:
+    """Warm-started PseudoInverseIK: each target from the previous solution, one start."""
+    previous, jumps, reached, seconds = start, [], [], 0.0
+    for target in path:
+        spent, joints = run_pseudo_inverse(arm, target[None], previous[None], iterations)
+        seconds += spent
+        chosen = joints[0, 0]
+        reached.append(bool(within_pose_tolerance(arm, chosen[None, None], target[None])[0, 0]))
+        jumps.append(float((chosen - previous).abs().max()))
+        previous = chosen
+    return {"reached": reached, "jumps": jumps, "seconds": seconds}
+
+
+def tracking_part(solver, config: ConstraintBenchmarkConfig) -> dict:
+    arm = solver.arm
+    name, steps = parse_sampler(config.sampler)
+    generator = torch.Generator().manual_seed(config.seed + 2)
+    starts = [torch.tensor(READY_POSE)]
+    while len(starts) < config.track_circles:  # random starts away from the limits, so a circle is likely feasible
+        limits = arm.joint_limits
+        unit = 0.2 + 0.6 * torch.rand(arm.num_joints, generator=generator)
+        starts.append(limits[:, 0] + unit * (limits[:, 1] - limits[:, 0]))
+    circles = []
+    for index, start in enumerate(starts):
+        path = circle_path(arm, start, config.track_points, config.track_radius)
+        methods = {}
+        variants = (
+            (
+                f"IKDP track, near-pose weight {config.track_weight}, + warm-started candidate",
+                config.track_weight,
+                True,
+            ),
+            (f"IKDP track, near-pose weight {config.track_weight}, samples only", config.track_weight, False),
+            ("IKDP, no near-pose pull (nearest valid sample kept)", 0.0, False),
+        )
+        for label, weight, warm in variants:
+            seconds, result = timed(
+                lambda weight=weight, warm=warm, path=path, start=start, index=index: solver.track(
+                    path,
+                    start,
+                    weight=weight,
+                    warm_start=warm,
+                    num_samples=config.samples,
+                    sampler=name,
+                    steps=steps,
+                    refine_steps=config.refine_steps,
+                    generator=torch.Generator().manual_seed(index),
+                )
+            )
+            methods[label] = {
+                "solved_share": float(result.reached.double().mean()),
+                "largest_jump_rad": result.largest_jump,
+                "jumps_over_0.1_rad": int((result.joint_jumps > 0.1).sum()),
+                "ms_per_target": 1000 * seconds / len(path),
+            }
+        try:
+            tracked = track_with_pseudo_inverse(arm, path, start, config.pk_iterations)
+            jumps = torch.tensor(tracked["jumps"])
+            methods[f"pytorch_kinematics PseudoInverseIK, warm-started, {config.pk_iterations} iterations"] = {
+                "solved_share": sum(tracked["reached"]) / len(path),
+                "largest_jump_rad": float(jumps.max()),
+                "jumps_over_0.1_rad": int((jumps > 0.1).sum()),
+                "ms_per_target": 1000 * tracked["seconds"] / len(path),
+            }
+        except ImportError:
+            pass
+        circles.append({"start_pose": start.tolist(), "methods": methods})
+    return {"points_per_circle": config.track_points, "radius_m": config.track_radius, "circles": circles}
+
+
+def planar_part(config: ConstraintBenchmarkConfig) -> dict:
+    solver = ikdp.load(config.planar_checkpoint)
+    arm = solver.arm
+    generator = torch.Generator().manual_seed(config.seed + 3)
+    truth = solver.prior.sample(config.planar_targets, arm.num_joints, generator=generator)
+    centers, radii, redrawn = torch.zeros(len(truth), 1, 2), torch.zeros(len(truth), 1), 0
+    for index in range(len(truth)):  # a disc over bone 2 or 3, clear of the base and of the target
+        for attempt in range(PLACEMENT_ATTEMPTS * 10):
+            if attempt and attempt % PLACEMENT_ATTEMPTS == 0:  # this pose leaves no room (folded near the base)
+                truth[index] = solver.prior.sample(1, arm.num_joints, generator=generator)[0]
+                redrawn += 1
+            points, target = arm.forward_kinematics(truth[index]), arm.end_effector(truth[index])
+            bone = int(torch.randint(1, 3, (1,), generator=generator))
+            center = points[bone : bone + 2].mean(dim=0) + (torch.rand(2, generator=generator) * 2 - 1) * 0.1
+            radius = 0.3 + 0.3 * torch.rand((), generator=generator)
+            if center.norm() > radius + 0.1 and (target - center).norm() > radius + 0.1:
+                centers[index, 0], radii[index, 0] = center, radius
+                break
+        else:
+            raise RuntimeError(f"planar target {index}: no disc placement found")
+    targets = arm.end_effector(truth)
+    obstacle = ikdp.Obstacles(centers, radii)
+    check = ConstraintSet(arm, [obstacle], len(targets), config.samples)
+    tolerance = 1e-3  # bone lengths
+
+    def valid_of(joints):
+        return (arm.tip_error(joints, targets[:, None]) < tolerance) & (check.violation(joints) == 0)
+
+    rows, solved = {}, {}
+    for text in (config.planar_sampler, "ddpm"):
+        name, steps = parse_sampler(text)
+        options = {"num_samples": config.samples, "sampler": name, "steps": steps, "refine_steps": config.refine_steps}
+        for guided in (True, False):
+            constraints = [obstacle] if guided else []
+            seconds, out = timed(
+                lambda constraints=constraints, options=options: solver.solve(
+                    targets, constraints=constraints, generator=torch.Generator().manual_seed(1), **options
+                )
+            )
+            label = f"IKDP {text}, K={config.samples}, " + (
+                f"guided + {config.refine_steps} constrained DLS steps"
+                if guided
+                else f"unguided + {config.refine_steps} DLS steps, filtered"
+            )
+            valid = valid_of(out.angles)
+            rows[label], solved[label] = row(valid, seconds), valid.any(dim=1)
+    goals = targets[:, None].expand(-1, config.samples, -1)
+    for dls_steps in config.random_start_steps:
+        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
+        starts = starts.unflatten(0, (len(targets), config.samples))
+        seconds, joints = timed(
+            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(
+                arm, starts, goals, steps=dls_steps, task=check.refine_task()
+            )
+        )
+        label = f"{config.samples} uniform random starts + {dls_steps} constrained DLS steps"
+        valid = valid_of(joints)
+        rows[label], solved[label] = row(valid, seconds), valid.any(dim=1)
+    any_method = torch.stack(list(solved.values())).any(dim=0)
+    return {
+        "targets": len(targets),
+        "tolerance_bone_lengths": tolerance,
+        "poses_redrawn_for_want_of_room": redrawn,
+        "rows": rows,
+        "solved_by_any_method": float(any_method.double().mean()),
+    }
+
+
+def print_rows(title: str, part: dict) -> None:
+    print(f"\n{title} ({part['targets']} targets)")
+    print("| method | solved | valid of K | ms per target |")
+    print("|---|---|---|---|")
+    for label, values in part["rows"].items():
+        extra = (
+            f" (locked joints moved {values['locked_joints_moved_rad']:.3g} rad)"
+            if "locked_joints_moved_rad" in values
+            else ""
+        )
+        print(
+            f"| {label}{extra} | {100 * values['success_share']:.1f} % | {values['valid_per_target']:.1f} "
+            f"| {values['ms_per_target']:.2f} |"
+        )
+    if "solved_by_any_method" in part:
+        print(f"solved by any method: {100 * part['solved_by_any_method']:.1f} %")
+
+
+def main(config: ConstraintBenchmarkConfig) -> dict:
+    torch.set_num_threads(1)
+    unknown = sorted(set(config.parts) - {"obstacles", "locked", "tracking", "partial", "planar"})
+    if unknown:
+        raise ValueError(f"parts: unknown {unknown}, expected obstacles, locked, tracking, partial, planar")
+    results: dict = {
+        "config": {**asdict(config), "output": str(config.output)},
+        "machine": machine_description(threads=1),
+    }
+    solver = ikdp.load(config.checkpoint) if set(config.parts) - {"planar"} else None
+    started = time.perf_counter()
+    if "obstacles" in config.parts:
+        results["obstacles"] = obstacles_part(solver, config)
+        print_rows("Panda, 2 spheres blocking a valid solution", results["obstacles"])
+    if "locked" in config.parts:
+        results["locked"] = locked_part(solver, config)
+        print_rows("Panda, joints 1 and 7 locked", results["locked"])
+    if "tracking" in config.parts:
+        results["tracking"] = tracking_part(solver, config)
+        print(f"\nPanda, tracking circles of {config.track_radius} m, {config.track_points} targets each")
+        print("| circle | method | solved | largest jump (rad) | jumps > 0.1 rad | ms per target |")
+        print("|---|---|---|---|---|---|")
+        for index, circle in enumerate(results["tracking"]["circles"]):
+            for label, values in circle["methods"].items():
+                print(
+                    f"| {index} | {label} | {100 * values['solved_share']:.1f} % | {values['largest_jump_rad']:.3f} "
+                    f"| {values['jumps_over_0.1_rad']} | {values['ms_per_target']:.1f} |"
+                )
+    if "partial" in config.parts:
+        results["partial"] = partial_part(solver, config)
+        for kind, part in results["partial"].items():
+            print_rows(f"Panda, partial target: {kind}", part)
+    if "planar" in config.parts:
+        results["planar"] = planar_part(config)
+        print_rows(f"planar N=4 ({config.planar_checkpoint}), one disc over a valid solution", results["planar"])
+    results["wall_seconds"] = time.perf_counter() - started
+    config.output.parent.mkdir(parents=True, exist_ok=True)
+    config.output.write_text(json.dumps(results, indent=2))
+    return results
+
+
+if __name__ == "__main__":
+    main(tyro.cli(ConstraintBenchmarkConfig, description=__doc__.splitlines()[0]))

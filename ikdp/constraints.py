@@ -1,0 +1,31 @@
+"""Constraints at sampling time, without retraining: one small registry, like the samplers'.
+
+    solver.solve(targets, constraints=[ikdp.LockedJoints({"panda_joint1": 0.3}), ikdp.Obstacles(centers, radii)])
+
+Kinds: locked joints and a pose to stay near (ikdp/joint_constraints.py), obstacles
+(ikdp/obstacles.py), partial targets for pose models: position only, or rotation free about
+an axis (ikdp/partial_targets.py). Each is guided during the reverse process or inpainted,
+kept by the refinement, and checked (ikdp/guidance.py runs them).
+"""
+
+from __future__ import annotations
+
+from ikdp.constraint_base import Constraint
+from ikdp.joint_constraints import LockedJoints, NearPose
+from ikdp.obstacles import Obstacles
+from ikdp.partial_targets import FreeAxis, PositionOnly
+
+CONSTRAINTS: dict[str, type[Constraint]] = {
+    cls.name: cls for cls in (LockedJoints, NearPose, Obstacles, PositionOnly, FreeAxis)
+}
+
+
+def constraint_names() -> tuple[str, ...]:
+    return tuple(CONSTRAINTS)
+
+
+def make_constraint(name: str, **options) -> Constraint:
+    """The constraint called `name` built from its options; ValueError naming the choices otherwise."""
+    if name not in CONSTRAINTS:
+        raise ValueError(f"constraint: expected one of {constraint_names()}, got {name!r}")
+    return CONSTRAINTS[name](**options)

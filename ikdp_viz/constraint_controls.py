@@ -1,0 +1,225 @@
+"""The viewer's Constraints folder: lock joints, drop and drag obstacles, stay near the last pose, follow.
+
+Controls live in their own folder of the panel; the app reads `constraints()` into each
+solve request and hands each finished solve to `after_solve`. Scene nodes (the obstacles'
+gizmos and spheres, the coloured overlay) are created and written on the scene writer's
+thread, through its `Call` message, like every other node.
+
+- lock: a checkbox and a value per joint (absolute headings on a planar arm);
+- add obstacle: a sphere (a disc on a planar arm) with a gizmo to drag it, between the base
+  and the target; its radius is the panel's at the time it is dropped;
+- stay near the last pose: every solve is pulled toward the pose last kept (ikdp.NearPose);
+- follow: stay near, and keep (highlight) the sample nearest the last pose: dragging the target
+  keeps the arm on one continuous solution; the readout gives the largest joint jump so far;
+- colour by constraint: the highlighted sample at every state of the reverse process, green
+  where the constraints hold and red where not (constraint_scene.py).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import viser
+
+from ikdp_viz.constraint_scene import build_constraints, first_holding_state, follow_choice, holds, overlay_segments
+from ikdp_viz.scene_writer import Call
+
+OBSTACLE_COLOR = (200, 60, 60)
+
+
+class ConstraintControls:
+    """The Constraints folder and its scene nodes for one model; `rebuild` for another."""
+
+    def __init__(self, server: viser.ViserServer, solver, post, on_change):
+        self.server = server
+        self.post = post  # the scene writer's post(): nodes are written on its thread
+        self.on_change = on_change  # ask for a new solve
+        self.lock = threading.Lock()  # guards `obstacles`
+        self.model_lock = threading.RLock()  # a rebuild for another model and a solve's readouts, one at a time
+        self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
+        self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
+        self.largest_jump = 0.0
+        self.overlay = None
+        self.build(solver)
+
+    # ------------------------------------------------------------------ the folder
+
+    def build(self, solver) -> None:
+        self.solver = solver
+        arm = solver.arm
+        planar = arm.kind == "planar"
+        gui = self.server.gui
+        names = [f"θ{index + 1}" for index in range(arm.num_joints)] if planar else list(arm.joint_names)
+        limits = None if planar else arm.joint_limits.numpy()
+        self.folder = gui.add_folder("Constraints", expand_by_default=False)
+        with self.folder:
+            self.lock_boxes, self.lock_values = [], []
+            for index, name in enumerate(names):
+                low, high = (-np.pi, np.pi) if limits is None else (float(limits[index, 0]), float(limits[index, 1]))
+                box = gui.add_checkbox(f"lock {name}", False)
+                value = gui.add_number(
+                    f"{name} value", round((low + high) / 2, 3), min=low, max=high, step=0.01, disabled=True
+                )
+                box.on_update(lambda _, box=box, value=value: self._on_lock(box, value))
+                value.on_update(lambda _: self.on_change())
+                self.lock_boxes.append(box)
+                self.lock_values.append(value)
+            span = arm.span
+            self.radius = gui.add_number(
+                "obstacle radius", round(0.1 * span if planar else 0.08, 3), min=0.01, max=span, step=0.01
+            )
+            self.add_button = gui.add_button("Add obstacle", hint="A sphere (a disc) no link may touch; drag it")
+            self.clear_button = gui.add_button("Clear obstacles")
+            self.stay_near = gui.add_checkbox("stay near the last pose", False, hint="Pull every solve toward it")
+            self.follow = gui.add_checkbox(
+                "follow (one continuous solution)", False, hint="Stay near, and keep the sample nearest the last pose"
+            )
+            self.color_states = gui.add_checkbox(
+                "colour poses by constraint", True, hint="The highlighted sample at every step: green holds, red not"
+            )
+            self.readout = gui.add_markdown("No constraint.")
+        self.add_button.on_click(lambda _: self.add_obstacle())
+        self.clear_button.on_click(lambda _: self.clear_obstacles())
+        for toggle in (self.stay_near, self.follow):
+            toggle.on_update(lambda _: self._on_near())
+        self.color_states.on_update(lambda _: self.post(Call(lambda writer: self._draw_overlay(writer.solved))))
+
+    def rebuild(self, solver) -> None:
+        """Another model: a fresh folder for its joints, no obstacles, no last pose."""
+        with self.model_lock:
+            self.clear_obstacles(ask=False)
+            self.post(Call(lambda writer: self._remove_overlay()))
+            self.folder.remove()
+            self.last_pose, self.largest_jump = None, 0.0
+            self.build(solver)
+
+    def _on_lock(self, box, value) -> None:
+        value.disabled = not box.value
+        self.on_change()
+
+    def _on_near(self) -> None:
+        if not (self.stay_near.value or self.follow.value):
+            self.largest_jump = 0.0
+        self.on_change()
+
+    # ------------------------------------------------------------------ what a solve asks for
+
+    def constraints(self) -> tuple:
+        """The panel's constraints now, as ikdp constraint objects."""
+        pairs = zip(self.lock_boxes, self.lock_values, strict=True)
+        locks = {index: value.value for index, (box, value) in enumerate(pairs) if box.value}
+        with self.lock:
+            obstacles = [(entry["position"], entry["radius"]) for entry in self.obstacles]
+        near = self.last_pose if (self.stay_near.value or self.follow.value) else None
+        return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar")
+
+    # ------------------------------------------------------------------ obstacles
+
+    def add_obstacle(self, position=None, radius: float | None = None) -> int:
+        """Drop an obstacle (between the base and the target when no position is given); returns its index."""
+        radius = float(self.radius.value if radius is None else radius)
+        if position is None:
+            position = self._default_position()
+        position = np.asarray(position, dtype=np.float64)
+        with self.lock:
+            index = len(self.obstacles)
+            entry = {"position": position, "radius": radius, "nodes": []}
+            self.obstacles.append(entry)
+        self.post(Call(lambda writer: self._add_obstacle_nodes(index, entry)))
+        self.on_change()
+        return index
+
+    def move_obstacle(self, index: int, position) -> None:
+        with self.lock:
+            self.obstacles[index]["position"] = np.asarray(position, dtype=np.float64)
+        self.on_change()
+
+    def clear_obstacles(self, ask: bool = True) -> None:
+        with self.lock:
+            removed, self.obstacles = self.obstacles, []
+        self.post(Call(lambda writer: [node.remove() for entry in removed for node in entry["nodes"]]))
+        if ask:
+            self.on_change()
+
+    def _default_position(self) -> np.ndarray:
+        arm = self.solver.arm
+        if self.last_pose is not None:  # on the middle of the arm as it stands: the easy solution is blocked
+            points = arm.forward_kinematics(np.asarray(self.last_pose, dtype=np.float64)[None])[0].numpy()
+            middle = points[len(points) // 2]
+        else:
+            middle = np.array([0.3 * arm.span, 0.3 * arm.span, 0.0])
+        return np.concatenate([middle, np.zeros(3 - len(middle))]) if len(middle) < 3 else middle
+
+    def _add_obstacle_nodes(self, index: int, entry: dict) -> None:
+        """Writer thread: the gizmo (in the plane for a planar arm) and its sphere, a child that moves with it."""
+        planar = self.solver.arm.kind == "planar"
+        gizmo = self.server.scene.add_transform_controls(
+            f"/constraints/obstacle_{index}", scale=max(2 * entry["radius"], 0.1), disable_rotations=True,
+            active_axes=(True, True, not planar), position=tuple(entry["position"]),
+        )  # fmt: skip
+        sphere = self.server.scene.add_icosphere(
+            f"/constraints/obstacle_{index}/sphere", radius=entry["radius"], color=OBSTACLE_COLOR, opacity=0.45,
+            subdivisions=2, cast_shadow=False, receive_shadow=False,
+        )  # fmt: skip
+        gizmo.on_update(lambda event, index=index: self.move_obstacle(index, event.target.position))
+        entry["nodes"] = [sphere, gizmo]
+
+    # ------------------------------------------------------------------ after a solve
+
+    def after_solve(self, solved, panel) -> None:
+        """Worker thread, once a solve is posted: keep the pose (follow: the nearest sample), write the readouts."""
+        with self.model_lock:
+            if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
+                self._after_solve(solved, panel)
+
+    def _after_solve(self, solved, panel) -> None:
+        view = solved.view
+        errors = np.asarray(getattr(view, "final_tip_error", getattr(view, "final_position_error", None)))
+        following = bool(self.follow.value)
+        choice, jump = follow_choice(
+            self.solver.arm, solved.final_angles, self.last_pose if following else None, errors
+        )
+        if following:
+            self.largest_jump = max(self.largest_jump, jump)
+            panel.highlight.value = str(choice + 1)
+        elif panel.highlight.value != "best":
+            choice = min(int(panel.highlight.value), len(errors)) - 1
+        self.last_pose = solved.final_angles[choice].copy()
+        self._write_readout(solved, choice, jump if following else None)
+        self.post(Call(lambda writer: self._draw_overlay(writer.solved)))
+
+    def _write_readout(self, solved, choice: int, jump: float | None) -> None:
+        lines = []
+        if solved.state_violation is not None:
+            met = int(holds(solved.state_violation[-1]).sum())
+            first = first_holding_state(solved.state_violation[:, choice])
+            states = len(solved.state_violation) - 1
+            held = "never" if first is None else f"from state {first} of {states} (t = {solved.view.labels[first]})"
+            lines.append(f"constraints met by {met} of {len(solved.state_violation[-1])} raw samples")
+            lines.append(f"sample {choice + 1}: holds {held}")
+        if jump is not None:
+            lines.append(f"joint jump {jump:.3f} rad, largest so far **{self.largest_jump:.3f} rad**")
+        self.readout.content = "  \n".join(lines) if lines else "No constraint."
+
+    def _remove_overlay(self) -> None:
+        if self.overlay is not None:
+            self.overlay.remove()
+            self.overlay = None
+
+    def _draw_overlay(self, solved) -> None:
+        """Writer thread: the highlighted sample at every state, coloured by whether its constraints hold."""
+        self._remove_overlay()
+        if solved is None or solved.state_violation is None or not self.color_states.value:
+            return
+        view = solved.view
+        choice = 0
+        if self.last_pose is not None and solved.final_angles is not None:
+            choice = int(np.argmin(np.abs(solved.final_angles - self.last_pose).sum(axis=-1)))
+        points = view.joints[:, choice] if hasattr(view, "joints") else view.points[:, choice]
+        segments, colors = overlay_segments(points, solved.state_violation[:, choice])
+        if hasattr(view, "joints"):
+            segments[..., 2] += 0.01 * float(np.sum(view.lengths))  # above the planar arms
+        self.overlay = self.server.scene.add_line_segments(
+            "/constraints/states", segments, colors, thickness=2.0, thickness_units="screen"
+        )

@@ -1,0 +1,84 @@
+"""The Constraints panel's arrays: constraints from its settings, each state's violation, the coloured overlay.
+
+No viser here. The overlay draws one sample's pose at every state of the reverse process,
+green where the constraints hold (to HOLDS_TOLERANCE) and red where they do not, so the user
+sees at which step the constraint takes hold. Follow mode keeps, of the K samples, the one
+nearest the previous pose, and reports the largest joint jump.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+import ikdp
+from ikdp.constraint_base import joint_difference
+from ikdp.guidance import ConstraintSet
+
+HOLDS = (40, 170, 80)  # a state whose pose meets the constraints
+VIOLATES = (215, 50, 40)  # one that does not
+HOLDS_TOLERANCE = 0.01  # summed violation (radians of a locked joint, depth in the arm's unit) drawn as holding
+NEAR_WEIGHT = 0.6  # the pull toward the last pose (ikdp.tracking: 0.6 kept a Panda circle's jumps under 0.02 rad)
+
+
+def build_constraints(
+    locks: dict[int, float], obstacles: list[tuple[np.ndarray, float]], near_pose: np.ndarray | None, *, planar: bool
+) -> tuple:
+    """The panel's settings as ikdp constraints: locked joints, obstacles (discs, planar), a pose to stay near."""
+    constraints = []
+    if locks:
+        constraints.append(ikdp.LockedJoints({index: float(value) for index, value in locks.items()}))
+    if obstacles:
+        dim = 2 if planar else 3
+        centers = np.array([np.asarray(center, dtype=np.float64)[:dim] for center, _ in obstacles])
+        constraints.append(ikdp.Obstacles(centers, [float(radius) for _, radius in obstacles]))
+    if near_pose is not None:
+        constraints.append(ikdp.NearPose(np.asarray(near_pose, dtype=np.float64), weight=NEAR_WEIGHT))
+    return tuple(constraints)
+
+
+def state_violation(solver, constraints, result) -> np.ndarray:
+    """(S+1, K) each state's summed violation of the solve's constraints (one target)."""
+    trajectory = result.trajectory[:, 0]  # (S+1, K, J)
+    checked = ConstraintSet(solver.arm, list(constraints), 1, trajectory.shape[1])
+    return np.stack([checked.violation(state[None])[0].numpy() for state in trajectory])
+
+
+def holds(violation: np.ndarray) -> np.ndarray:
+    return violation <= HOLDS_TOLERANCE
+
+
+def first_holding_state(violation: np.ndarray) -> int | None:
+    """(S+1,) one sample's violations -> the first state from which every later state holds; None if the last fails."""
+    holding = holds(violation)
+    if not holding[-1]:
+        return None
+    failing = np.flatnonzero(~holding)
+    return int(failing[-1]) + 1 if len(failing) else 0
+
+
+def overlay_segments(points: np.ndarray, violation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One sample's joint positions at every state (S+1, P, 2 or 3) and violations (S+1,) -> line segments
+    (S * (P-1)... , 2, 3) and their colours (same, uint8): green where the state holds, red where not."""
+    points = np.asarray(points, dtype=np.float32)
+    if points.shape[-1] == 2:
+        points = np.concatenate([points, np.zeros((*points.shape[:-1], 1), np.float32)], axis=-1)
+    segments = np.stack([points[:, :-1], points[:, 1:]], axis=-2)  # (S+1, P-1, 2, 3)
+    colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS), np.array(VIOLATES))
+    colors = np.broadcast_to(colors, segments.shape).astype(np.uint8)
+    return segments.reshape(-1, 2, 3), colors.reshape(-1, 2, 3)
+
+
+def follow_choice(arm, final_angles: np.ndarray, previous: np.ndarray | None, errors: np.ndarray) -> tuple[int, float]:
+    """The sample to keep in follow mode and its largest joint jump from `previous` (radians / metres).
+
+    With no previous pose, the sample with the smallest error; else the nearest of those within
+    10x the best error (so a sample that misses the target is not kept for being near).
+    """
+    if previous is None:
+        return int(np.argmin(errors)), 0.0
+    angles = torch.as_tensor(final_angles, dtype=torch.float64)
+    jump = joint_difference(arm, angles, torch.as_tensor(previous, dtype=torch.float64)).abs().amax(dim=-1).numpy()
+    good = errors <= max(10 * float(errors.min()), 1e-3 * arm.span)
+    choice = int(np.argmin(np.where(good, jump, np.inf)))
+    return choice, float(jump[choice])

@@ -1,0 +1,60 @@
+"""The Constraints folder in a real browser: a joint locked by a click, an obstacle, follow mode; no page error.
+
+Every page error and every console message of type "error" is collected; none may appear.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from viz_helpers import BROWSER_TIMEOUT, canvas_box, open_page_collecting_errors, read_png, running_app, settle
+
+import ikdp
+from ikdp.shipped import list_shipped, shipped_checkpoint
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
+
+
+def wait_for(condition) -> bool:
+    deadline = time.monotonic() + BROWSER_TIMEOUT
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return condition()
+
+
+def test_locking_a_joint_and_dropping_an_obstacle_in_the_page(browser):
+    if "ikdp_n4" not in {path.stem for path in list_shipped()}:
+        pytest.skip("the shipped ikdp_n4 is not there")
+    solver = ikdp.load(shipped_checkpoint("ikdp_n4"))
+    with running_app(solver, animation_seconds=0.5, target=(1.5, 1.0)) as app:
+        settle(app)
+        controls = app.constraint_controls
+        page, errors = open_page_collecting_errors(browser, app, height=1600)
+        page.get_by_text("Constraints", exact=True).click()  # open the folder, as a user would
+        page.get_by_text("lock θ1", exact=True).click()
+        assert wait_for(lambda: controls.lock_boxes[0].value)
+        settle(app)
+        assert wait_for(lambda: any(c.name == "locked_joints" for c in app.solved.request.constraints))
+        assert np.all(app.solved.final_angles[:, 0] == np.float32(controls.lock_values[0].value))
+        before = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
+        page.get_by_text("Add obstacle", exact=True).click()
+        assert wait_for(lambda: len(controls.obstacles) == 1 and controls.obstacles[0]["nodes"])
+        settle(app)
+        page.get_by_text("follow (one continuous solution)", exact=True).click()
+        assert wait_for(lambda: controls.follow.value)
+        settle(app)
+        app.move_target((1.4, 1.1))
+        settle(app)
+        assert wait_for(lambda: "largest so far" in controls.readout.content)
+        time.sleep(SETTLE_IN_PAGE)
+        after = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
+        assert not errors, f"{errors[:3]} ({len(errors)} in all)"
+        # the page drew the obstacle and the coloured states
+        x, y, width, height = (int(value) for value in canvas_box(page))
+        changed = np.abs(after[y : y + height, x : x + width].astype(int) - before[y : y + height, x : x + width])
+        assert (changed.max(axis=-1) > 40).mean() > 0.005
+        page.close()
