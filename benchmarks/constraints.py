@@ -80,6 +80,13 @@ def timed(run):
     return time.perf_counter() - started, result
 
 
+def refined_random_starts(arm, goals: torch.Tensor, dls_steps: int, task) -> tuple[float, torch.Tensor]:
+    """K uniform random starts per target (goals (B, K, C)), then `dls_steps` constrained DLS steps: timed."""
+    starts = arm.random_poses(goals.shape[0] * goals.shape[1], generator=torch.Generator().manual_seed(3))
+    starts = starts.unflatten(0, tuple(goals.shape[:2]))
+    return timed(lambda: damped_least_squares(arm, starts, goals, steps=dls_steps, task=task))
+
+
 def within_pose_tolerance(arm, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
     """joints (B, K, J) -> (B, K) within 1 mm and 1 degree of the pose targets (B, 7)."""
     goals = targets[:, None].expand(-1, joints.shape[1], -1)
@@ -170,13 +177,7 @@ def obstacles_part(solver, config: ConstraintBenchmarkConfig) -> dict:
     record(label, seconds, out.angles)
     goals = targets[:, None].expand(-1, config.samples, -1)
     for dls_steps in config.random_start_steps:
-        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
-        starts = starts.unflatten(0, (len(targets), config.samples))
-        seconds, joints = timed(
-            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(
-                arm, starts, goals, steps=dls_steps, task=check.refine_task()
-            )
-        )
+        seconds, joints = refined_random_starts(arm, goals, dls_steps, check.refine_task())
         record(f"{config.samples} uniform random starts + {dls_steps} constrained DLS steps", seconds, joints)
     try:
         retry = arm.random_poses(config.pk_retries, generator=torch.Generator().manual_seed(config.seed + 9))
@@ -407,13 +408,7 @@ def planar_part(config: ConstraintBenchmarkConfig) -> dict:
             rows[label], solved[label] = row(valid, seconds), valid.any(dim=1)
     goals = targets[:, None].expand(-1, config.samples, -1)
     for dls_steps in config.random_start_steps:
-        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
-        starts = starts.unflatten(0, (len(targets), config.samples))
-        seconds, joints = timed(
-            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(
-                arm, starts, goals, steps=dls_steps, task=check.refine_task()
-            )
-        )
+        seconds, joints = refined_random_starts(arm, goals, dls_steps, check.refine_task())
         label = f"{config.samples} uniform random starts + {dls_steps} constrained DLS steps"
         valid = valid_of(joints)
         rows[label], solved[label] = row(valid, seconds), valid.any(dim=1)
