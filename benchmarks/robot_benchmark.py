@@ -1,6 +1,7 @@
-"""IKDP on a real robot (the Franka Panda): accuracy, refinement, diversity and speed, beside baselines.
+"""IKDP on a real robot (the Franka Panda, or any chain model): accuracy, refinement, diversity and speed.
 
     OMP_NUM_THREADS=1 python benchmarks/robot_benchmark.py --checkpoint checkpoints/ikdp_panda.pt
+    OMP_NUM_THREADS=1 python benchmarks/robot_benchmark.py --checkpoint runs/my_arm.pt --raw-only
 
 On `targets` held-out pose targets (FK of joint values uniform within the limits, fixed seed):
 1. the raw sampler, K=1: position (mm) and rotation (degrees) error, medians and means, limit violations;
@@ -10,7 +11,8 @@ On `targets` held-out pose targets (FK of joint values uniform within the limits
    early stopping), all in the same run, one torch thread;
 3. diversity: mean pairwise joint distance (radians) of a target's valid solutions;
 4. the viewer's path for one target, K=16 (sampler + trajectory + x̂0 estimates + refinement).
-Prints tables and writes benchmarks/results/robot_panda.json.
+`--raw-only` stops after 1 (a quick look at a model in training). Prints tables and writes
+benchmarks/results/robot_<name>.json, <name> the checkpoint's file name without `ikdp_` (robot_panda.json).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import json
 import math
 import statistics
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import torch
@@ -29,7 +31,7 @@ import ikdp
 from ikdp.evaluation.machine import machine_description
 from ikdp.refine import damped_least_squares
 
-RESULTS = Path(__file__).resolve().parent / "results" / "robot_panda.json"
+RESULTS = Path(__file__).resolve().parent / "results"
 PUBLISHED = {  # mean position / rotation error of learned Panda IK, as published
     "IKFlow (Ames et al. 2022)": (6.66, 2.03),
     "GraphDiff-IK": (3.47, None),
@@ -50,7 +52,14 @@ class RobotBenchmarkConfig:
     repeats: int = 3  # timing repeats (median quoted)
     latency_repeats: int = 15  # one-target viewer-path repeats
     seed: int = 0
-    output: Path = field(default=RESULTS)
+    raw_only: bool = False  # only the raw sampler's table: no K=16 pipelines, baselines or latency
+    output: Path | None = None  # the JSON; None: benchmarks/results/robot_<checkpoint name without ikdp_>.json
+
+
+def default_output(checkpoint_path: str) -> Path:
+    """benchmarks/results/robot_<name>.json for checkpoints/ikdp_<name>.pt (robot_panda.json for the Panda)."""
+    stem = Path(checkpoint_path).stem
+    return RESULTS / f"robot_{stem.removeprefix('ikdp_')}.json"
 
 
 def parse_sampler(text: str) -> tuple[str, int | None]:
@@ -109,9 +118,10 @@ def main(config: RobotBenchmarkConfig) -> dict:
     torch.set_num_threads(1)
     solver = ikdp.load(config.checkpoint)
     arm = solver.arm
+    output = config.output or default_output(solver.metadata["path"])
     targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
     results: dict = {
-        "config": {**asdict(config), "output": str(config.output)},
+        "config": {**asdict(config), "output": str(output)},
         "checkpoint": solver.metadata["path"],
         "machine": machine_description(threads=1),  # the load average says how shared the CPU was
     }
@@ -130,6 +140,10 @@ def main(config: RobotBenchmarkConfig) -> dict:
             "limit_violations": int(arm.limit_violations(out.raw_angles).sum()),
         }
     results["raw_k1"] = raw
+    if config.raw_only:
+        print_raw(raw, config.targets)
+        write(results, output)
+        return results
 
     pipelines = {}
     name, steps = parse_sampler(config.pipeline_sampler)
@@ -184,14 +198,7 @@ def main(config: RobotBenchmarkConfig) -> dict:
     results["viewer_path_ms"] = latency
     results["published_mean_mm_deg"] = PUBLISHED
 
-    print(f"raw sampler, K=1, {config.targets} pose targets")
-    print("| sampler | position mm median / mean | rotation deg median / mean | limit violations |")
-    print("|---|---|---|---|")
-    for text, row in raw.items():
-        print(
-            f"| {text} | {row['position_mm_median']:.2f} / {row['position_mm_mean']:.2f} "
-            f"| {row['rotation_deg_median']:.2f} / {row['rotation_deg_mean']:.2f} | {row['limit_violations']} |"
-        )
+    print_raw(raw, config.targets)
     print("\n| pipeline | within 1 mm and 1 deg | valid of K | diversity (rad) | ms per target | limit violations |")
     print("|---|---|---|---|---|---|")
     for label, row in pipelines.items():
@@ -200,9 +207,25 @@ def main(config: RobotBenchmarkConfig) -> dict:
             f"| {row['diversity_rad']:.2f} | {1000 * row['seconds_per_target']:.2f} | {row['limit_violations']} |"
         )
     print("\nviewer path, one target, K=16 (+ trajectory, estimates, refinement):", latency)
-    config.output.parent.mkdir(parents=True, exist_ok=True)
-    config.output.write_text(json.dumps(results, indent=2))
+    write(results, output)
     return results
+
+
+def print_raw(raw: dict, targets: int) -> None:
+    print(f"raw sampler, K=1, {targets} pose targets")
+    print("| sampler | position mm median / mean | rotation deg median / mean | limit violations |")
+    print("|---|---|---|---|")
+    for text, row in raw.items():
+        print(
+            f"| {text} | {row['position_mm_median']:.2f} / {row['position_mm_mean']:.2f} "
+            f"| {row['rotation_deg_median']:.2f} / {row['rotation_deg_mean']:.2f} | {row['limit_violations']} |"
+        )
+
+
+def write(results: dict, output: Path) -> None:
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(json.dumps(results, indent=2))
+    print(f"wrote {output}")
 
 
 if __name__ == "__main__":
