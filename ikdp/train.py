@@ -45,7 +45,7 @@ class TrainConfig:
     """Train an IKDP conditional diffusion model for a planar N-link arm."""
 
     joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
-    robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, spatial<N> (ikdp.robots)
+    robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, z1, spatial<N> (ikdp.robots)
     urdf: str = ""  # or any serial chain from a URDF file (with --ee-link)
     ee_link: str = ""  # the end-effector link of --urdf (--robot panda uses panda_hand)
     base_link: str = ""  # where --urdf's chain starts, the frame of the targets; empty: the root of ee_link's tree

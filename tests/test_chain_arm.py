@@ -298,6 +298,8 @@ def test_robot_names_load(panda):
     assert panda.urdf_path.endswith("panda.urdf") and panda.joint_names[0] == "panda_joint1"
     ur5 = load_robot("ur5")
     assert ur5.num_joints == 6 and ur5.ee_link == "tool0"
+    z1 = load_robot("z1")
+    assert z1.num_joints == 6 and z1.ee_link == "gripperStator" and z1.base_link == "world"
     assert load_robot("spatial3").num_joints == 6
     with pytest.raises(ValueError, match="unknown robot"):
         load_robot("pr2")
