@@ -78,7 +78,12 @@ def main(argv: list[str] | None = None) -> None:
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     checkpoints = list_checkpoints(shipped_dir(), path)
     app = VizApp(
-        server, solver, checkpoints=checkpoints, solve_now=False, animation_seconds=0.0, target=tuple(args.target)
+        server,
+        solver,
+        checkpoints=checkpoints,
+        solve_now=False,
+        animation_seconds=0.0,
+        target=args.target and tuple(args.target),
     )
     app.panel.samples.value = args.samples
     app.panel.seed.value = args.seed
