@@ -72,6 +72,7 @@ def test_any_urdf_trains_with_its_end_effector_link(tmp_path):
     assert solver.arm.target_dim == 3 and solver.arm.num_joints == 4
     out = solver.solve([[1.0, 0.5, 0.2]], num_samples=2)
     assert out.angles.shape == (1, 2, 4) and out.rotation_error is None
+    assert "| two_links.urdf (tip), 4 joints, position targets |" in describe([str(arm_checkpoint)])
 
 
 def test_a_robot_needs_its_end_effector_link(tmp_path):
