@@ -5,6 +5,7 @@
 
 On `targets` held-out pose targets (FK of joint values uniform within the limits, fixed seed):
 1. the raw sampler, K=1: position (mm) and rotation (degrees) error, medians and means, limit violations;
+   (a model of position targets, `--target position`: no rotation, and success is within 1 mm alone)
 2. K=16 + `refine_steps` limit-aware damped-least-squares steps: share of targets with a solution within
    1 mm and 1 degree, valid solutions per target, time per target; beside 16 uniform random starts with
    the same steps and with more, and pytorch_kinematics' PseudoInverseIK (16 retries, 30 iterations,
@@ -77,9 +78,11 @@ def median_seconds(run, repeats: int) -> tuple[float, object]:
 
 
 def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
-    """joints (B, K, J) for targets (B, 7): success within 1 mm and 1 degree, and diversity of the valid ones."""
+    """joints (B, K, J) for targets (B, 7) or (B, 3): success within 1 mm (and 1 degree), and diversity of the valid."""
     goals = targets[:, None].expand(-1, joints.shape[1], -1)
-    valid = (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
+    valid = arm.position_error(joints, goals) < 1e-3
+    if arm.target_dim == 7:
+        valid &= arm.rotation_error(joints, goals) < math.radians(1)
     pairwise = torch.cdist(joints.double(), joints.double())  # (B, K, K)
     pair_valid = valid[:, :, None] & valid[:, None, :] & ~torch.eye(joints.shape[1], dtype=torch.bool)
     per_target = (pairwise * pair_valid).sum((1, 2)) / pair_valid.sum((1, 2)).clamp(min=1)
@@ -131,7 +134,11 @@ def main(config: RobotBenchmarkConfig) -> dict:
         name, steps = parse_sampler(text)
         seeded = torch.Generator().manual_seed(1)
         out = solver.solve(targets, num_samples=1, sampler=name, steps=steps, generator=seeded)
-        position, rotation = out.raw_tip_error[:, 0] * 1000, torch.rad2deg(out.rotation_error[:, 0])
+        position = out.raw_tip_error[:, 0] * 1000
+        # a model of position targets has no rotation error: NaN in the table
+        rotation = (
+            torch.rad2deg(out.rotation_error[:, 0]) if arm.target_dim == 7 else torch.full_like(position, math.nan)
+        )
         raw[text] = {
             "position_mm_median": float(position.median()),
             "position_mm_mean": float(position.mean()),
@@ -141,7 +148,7 @@ def main(config: RobotBenchmarkConfig) -> dict:
         }
     results["raw_k1"] = raw
     if config.raw_only:
-        print_raw(raw, config.targets)
+        print_raw(raw, config.targets, arm.target)
         write(results, output)
         return results
 
@@ -173,7 +180,8 @@ def main(config: RobotBenchmarkConfig) -> dict:
         pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, joints, targets)}
     try:
         label = f"pytorch_kinematics PseudoInverseIK, {config.pk_retries} retries, {config.pk_iterations} iterations"
-        pipelines[label] = run_pytorch_kinematics(arm, targets, config)
+        if arm.target_dim == 7:  # PseudoInverseIK solves for poses; a position model has no such row
+            pipelines[label] = run_pytorch_kinematics(arm, targets, config)
     except ImportError:
         pass
     results["pipelines"] = pipelines
@@ -198,7 +206,7 @@ def main(config: RobotBenchmarkConfig) -> dict:
     results["viewer_path_ms"] = latency
     results["published_mean_mm_deg"] = PUBLISHED
 
-    print_raw(raw, config.targets)
+    print_raw(raw, config.targets, arm.target)
     print("\n| pipeline | within 1 mm and 1 deg | valid of K | diversity (rad) | ms per target | limit violations |")
     print("|---|---|---|---|---|---|")
     for label, row in pipelines.items():
@@ -211,8 +219,8 @@ def main(config: RobotBenchmarkConfig) -> dict:
     return results
 
 
-def print_raw(raw: dict, targets: int) -> None:
-    print(f"raw sampler, K=1, {targets} pose targets")
+def print_raw(raw: dict, targets: int, kind: str) -> None:
+    print(f"raw sampler, K=1, {targets} {kind} targets")
     print("| sampler | position mm median / mean | rotation deg median / mean | limit violations |")
     print("|---|---|---|---|")
     for text, row in raw.items():
