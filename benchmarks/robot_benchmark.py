@@ -1,16 +1,19 @@
-"""IKDP on a real robot (the Franka Panda): accuracy, refinement, diversity and speed, beside baselines.
+"""IKDP on a real robot (the Franka Panda, or any chain model): accuracy, refinement, diversity and speed.
 
     OMP_NUM_THREADS=1 python benchmarks/robot_benchmark.py --checkpoint checkpoints/ikdp_panda.pt
+    OMP_NUM_THREADS=1 python benchmarks/robot_benchmark.py --checkpoint runs/my_arm.pt --raw-only
 
 On `targets` held-out pose targets (FK of joint values uniform within the limits, fixed seed):
 1. the raw sampler, K=1: position (mm) and rotation (degrees) error, medians and means, limit violations;
+   (a model of position targets, `--target position`: no rotation, and success is within 1 mm alone)
 2. K=16 + `refine_steps` limit-aware damped-least-squares steps: share of targets with a solution within
    1 mm and 1 degree, valid solutions per target, time per target; beside 16 uniform random starts with
    the same steps and with more, and pytorch_kinematics' PseudoInverseIK (16 retries, 30 iterations,
    early stopping), all in the same run, one torch thread;
 3. diversity: mean pairwise joint distance (radians) of a target's valid solutions;
 4. the viewer's path for one target, K=16 (sampler + trajectory + x̂0 estimates + refinement).
-Prints tables and writes benchmarks/results/robot_panda.json.
+`--raw-only` stops after 1 (a quick look at a model in training). Prints tables and writes
+benchmarks/results/robot_<name>.json, <name> the checkpoint's file name without `ikdp_` (robot_panda.json).
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ import json
 import math
 import statistics
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import torch
@@ -29,7 +32,7 @@ import ikdp
 from ikdp.evaluation.machine import machine_description
 from ikdp.refine import damped_least_squares
 
-RESULTS = Path(__file__).resolve().parent / "results" / "robot_panda.json"
+RESULTS = Path(__file__).resolve().parent / "results"
 PUBLISHED = {  # mean position / rotation error of learned Panda IK, as published
     "IKFlow (Ames et al. 2022)": (6.66, 2.03),
     "GraphDiff-IK": (3.47, None),
@@ -51,7 +54,14 @@ class RobotBenchmarkConfig:
     repeats: int = 3  # timing repeats (median quoted)
     latency_repeats: int = 15  # one-target viewer-path repeats
     seed: int = 0
-    output: Path = field(default=RESULTS)
+    raw_only: bool = False  # only the raw sampler's table: no K=16 pipelines, baselines or latency
+    output: Path | None = None  # the JSON; None: benchmarks/results/robot_<checkpoint name without ikdp_>.json
+
+
+def default_output(checkpoint_path: str) -> Path:
+    """benchmarks/results/robot_<name>.json for checkpoints/ikdp_<name>.pt (robot_panda.json for the Panda)."""
+    stem = Path(checkpoint_path).stem
+    return RESULTS / f"robot_{stem.removeprefix('ikdp_')}.json"
 
 
 def parse_sampler(text: str) -> tuple[str, int | None]:
@@ -69,9 +79,11 @@ def median_seconds(run, repeats: int) -> tuple[float, object]:
 
 
 def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
-    """joints (B, K, J) for targets (B, 7): success within 1 mm and 1 degree, and diversity of the valid ones."""
+    """joints (B, K, J) for targets (B, 7) or (B, 3): success within 1 mm (and 1 degree), and diversity of the valid."""
     goals = targets[:, None].expand(-1, joints.shape[1], -1)
-    valid = (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
+    valid = arm.position_error(joints, goals) < 1e-3
+    if arm.target_dim == 7:
+        valid &= arm.rotation_error(joints, goals) < math.radians(1)
     pairwise = torch.cdist(joints.double(), joints.double())  # (B, K, K)
     pair_valid = valid[:, :, None] & valid[:, None, :] & ~torch.eye(joints.shape[1], dtype=torch.bool)
     per_target = (pairwise * pair_valid).sum((1, 2)) / pair_valid.sum((1, 2)).clamp(min=1)
@@ -110,9 +122,10 @@ def main(config: RobotBenchmarkConfig) -> dict:
     torch.set_num_threads(1)
     solver = ikdp.load(config.checkpoint)
     arm = solver.arm
+    output = config.output or default_output(solver.metadata["path"])
     targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
     results: dict = {
-        "config": {**asdict(config), "output": str(config.output)},
+        "config": {**asdict(config), "output": str(output)},
         "checkpoint": solver.metadata["path"],
         "machine": machine_description(threads=1),  # the load average says how shared the CPU was
     }
@@ -122,7 +135,11 @@ def main(config: RobotBenchmarkConfig) -> dict:
         name, steps = parse_sampler(text)
         seeded = torch.Generator().manual_seed(1)
         out = solver.solve(targets, num_samples=1, sampler=name, steps=steps, generator=seeded)
-        position, rotation = out.raw_tip_error[:, 0] * 1000, torch.rad2deg(out.rotation_error[:, 0])
+        position = out.raw_tip_error[:, 0] * 1000
+        # a model of position targets has no rotation error: NaN in the table
+        rotation = (
+            torch.rad2deg(out.rotation_error[:, 0]) if arm.target_dim == 7 else torch.full_like(position, math.nan)
+        )
         raw[text] = {
             "position_mm_median": float(position.median()),
             "position_mm_mean": float(position.mean()),
@@ -131,6 +148,10 @@ def main(config: RobotBenchmarkConfig) -> dict:
             "limit_violations": int(arm.limit_violations(out.raw_angles).sum()),
         }
     results["raw_k1"] = raw
+    if config.raw_only:
+        print_raw(raw, config.targets, arm.target)
+        write(results, output)
+        return results
 
     pipelines = {}
     name, steps = parse_sampler(config.pipeline_sampler)
@@ -176,7 +197,8 @@ def main(config: RobotBenchmarkConfig) -> dict:
         pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, joints, targets)}
     try:
         label = f"pytorch_kinematics PseudoInverseIK, {config.pk_retries} retries, {config.pk_iterations} iterations"
-        pipelines[label] = run_pytorch_kinematics(arm, targets, config)
+        if arm.target_dim == 7:  # PseudoInverseIK solves for poses; a position model has no such row
+            pipelines[label] = run_pytorch_kinematics(arm, targets, config)
     except ImportError:
         pass
     results["pipelines"] = pipelines
@@ -201,14 +223,7 @@ def main(config: RobotBenchmarkConfig) -> dict:
     results["viewer_path_ms"] = latency
     results["published_mean_mm_deg"] = PUBLISHED
 
-    print(f"raw sampler, K=1, {config.targets} pose targets")
-    print("| sampler | position mm median / mean | rotation deg median / mean | limit violations |")
-    print("|---|---|---|---|")
-    for text, row in raw.items():
-        print(
-            f"| {text} | {row['position_mm_median']:.2f} / {row['position_mm_mean']:.2f} "
-            f"| {row['rotation_deg_median']:.2f} / {row['rotation_deg_mean']:.2f} | {row['limit_violations']} |"
-        )
+    print_raw(raw, config.targets, arm.target)
     print("\n| pipeline | within 1 mm and 1 deg | valid of K | diversity (rad) | ms per target | limit violations |")
     print("|---|---|---|---|---|---|")
     for label, row in pipelines.items():
@@ -217,9 +232,25 @@ def main(config: RobotBenchmarkConfig) -> dict:
             f"| {row['diversity_rad']:.2f} | {1000 * row['seconds_per_target']:.2f} | {row['limit_violations']} |"
         )
     print("\nviewer path, one target, K=16 (+ trajectory, estimates, refinement):", latency)
-    config.output.parent.mkdir(parents=True, exist_ok=True)
-    config.output.write_text(json.dumps(results, indent=2))
+    write(results, output)
     return results
+
+
+def print_raw(raw: dict, targets: int, kind: str) -> None:
+    print(f"raw sampler, K=1, {targets} {kind} targets")
+    print("| sampler | position mm median / mean | rotation deg median / mean | limit violations |")
+    print("|---|---|---|---|")
+    for text, row in raw.items():
+        print(
+            f"| {text} | {row['position_mm_median']:.2f} / {row['position_mm_mean']:.2f} "
+            f"| {row['rotation_deg_median']:.2f} / {row['rotation_deg_mean']:.2f} | {row['limit_violations']} |"
+        )
+
+
+def write(results: dict, output: Path) -> None:
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(json.dumps(results, indent=2))
+    print(f"wrote {output}")
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import argparse
 import math
 import sys
 from dataclasses import fields
+from pathlib import PurePath
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint
 from ikdp.train import TrainConfig
@@ -44,11 +45,11 @@ def training_command(train: dict) -> str:
 
 
 def arm_text(model: dict, train: dict) -> str:
-    """'planar, 4 links' or 'panda (panda_hand), 7 joints, pose targets'."""
+    """'planar, 4 links', 'panda (panda_hand), 7 joints, pose targets' or 'z1.urdf (gripperStator), ...' for --urdf."""
     arm = model.get("arm") or {"kind": "planar"}  # a planar model may store only its lengths
     if arm["kind"] == "planar":
         return f"planar, {len(model['lengths'])} links"
-    name = train.get("robot") or train.get("urdf") or "chain"
+    name = train.get("robot") or (train.get("urdf") and PurePath(train["urdf"]).name) or "chain"  # not a long path
     return f"{name} ({arm.get('ee_link', '?')}), {len(arm['joint_names'])} joints, {arm.get('target', 'pose')} targets"
 
 

@@ -1,6 +1,6 @@
 """Shipped robots by name: which URDF and which end-effector link, and the paper's spatial arm.
 
-The Panda and the UR5 come from the `example-robot-data` wheel (BSD-3; the Panda's files Apache-2.0),
+The Panda, the UR5 and the Unitree Z1 come from the `example-robot-data` wheel (BSD-3; the Panda's files Apache-2.0),
 found through its installed file list, so no site-packages path is written here. The paper's
 spatial N-link arm (its equations 1-2) is built in code as a URDF string.
 """
@@ -26,6 +26,8 @@ class RobotEntry:
 ROBOTS = {
     "panda": RobotEntry("panda_description/urdf/panda.urdf", "panda_hand", "Franka Emika Panda, 7 revolute joints"),
     "ur5": RobotEntry("ur_description/urdf/ur5_robot.urdf", "tool0", "Universal Robots UR5, 6 revolute joints"),
+    # the gripper's fixed base (a link after joint6): the gripper's own joint stays off the chain
+    "z1": RobotEntry("z1_description/urdf/z1.urdf", "gripperStator", "Unitree Z1, 6 revolute joints"),
 }
 
 

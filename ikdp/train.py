@@ -45,9 +45,10 @@ class TrainConfig:
     """Train an IKDP conditional diffusion model for a planar N-link arm."""
 
     joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
-    robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, spatial<N> (ikdp.robots)
+    robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, z1, spatial<N> (ikdp.robots)
     urdf: str = ""  # or any serial chain from a URDF file (with --ee-link)
     ee_link: str = ""  # the end-effector link of --urdf (--robot panda uses panda_hand)
+    base_link: str = ""  # where --urdf's chain starts, the frame of the targets; empty: the root of ee_link's tree
     target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
     lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
     timesteps: int = 80  # diffusion steps T
@@ -85,21 +86,39 @@ def build_chain_arm(config: TrainConfig):
     """The robot a config names (--robot or --urdf with --ee-link), or None for the planar arm."""
     if config.robot and config.urdf:
         raise ValueError("robot: give --robot NAME or --urdf PATH, not both")
+    if config.base_link and not config.urdf:
+        raise ValueError("base_link: --base-link goes with --urdf (a --robot's chain is fixed)")
     if config.robot:
         from ikdp.robots import load_robot
 
         return load_robot(config.robot, target=config.target)
     if config.urdf:
-        if not config.ee_link:
-            raise ValueError("ee_link: --urdf needs --ee-link NAME, the end-effector link")
         from ikdp.chain_arm import ChainArm
+        from ikdp.urdf import link_names, links_phrase
 
-        return ChainArm.from_urdf(config.urdf, config.ee_link, target=config.target)
+        if not config.ee_link:
+            path = Path(config.urdf)
+            known = f"; {links_phrase(link_names(path.read_text(encoding='utf-8')))}" if path.is_file() else ""
+            raise ValueError(f"ee_link: --urdf needs --ee-link NAME, the end-effector link{known}")
+        return ChainArm.from_urdf(config.urdf, config.ee_link, target=config.target, base_link=config.base_link or None)
     return None
+
+
+def refuse_locked_joints(arm) -> None:
+    """ValueError when a joint's limits are equal: the model scales every joint by its range, here zero."""
+    limits = arm.joint_limits
+    locked = [name for name, (lower, upper) in zip(arm.joint_names, limits.tolist(), strict=True) if not upper > lower]
+    if locked:
+        raise ValueError(
+            f"urdf: joint {locked[0]!r} has equal lower and upper limits (it cannot move): "
+            f"make it a fixed joint in the URDF, or pick a chain without it"
+        )
 
 
 def build_model(config: TrainConfig) -> IKDiffusion:
     chain = build_chain_arm(config)
+    if chain is not None:
+        refuse_locked_joints(chain)
     lengths = config.lengths or (1.0,) * config.joints
     if chain is None and len(lengths) != config.joints:
         raise ValueError(f"lengths: got {len(lengths)} bone lengths for {config.joints} joints")

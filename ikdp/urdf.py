@@ -6,8 +6,11 @@ on that path with its visual and collision geometry, and the file it came from. 
 (ikdp/chain_arm.py) folds the fixed joints into the offsets of the moving ones.
 
 Supported joints: revolute (limits required, as URDF requires), continuous (no limits, the angle
-wraps), prismatic (limits required) and fixed. Anything else on the path (floating, planar) is
-refused; joints off the path are ignored whatever their type, so a gripper's fingers do not matter.
+wraps; a <limit> on one is ignored), prismatic (limits required) and fixed. Anything else on the
+path (floating, planar) is refused, and so is a joint on the path that mimics another (the model
+treats every joint as free); joints off the path are ignored whatever their type, so a gripper's
+fingers do not matter. <dynamics>, <transmission>, <gazebo> and other elements are ignored. A
+xacro file is refused with the command that expands it.
 
 Mesh filenames `package://PKG/rest` are resolved by searching, from the URDF's folder upwards,
 for a folder `PKG/rest` or a folder named PKG holding `rest` (how ROS and example-robot-data
@@ -23,6 +26,7 @@ from pathlib import Path
 
 SUPPORTED_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
 MOVABLE_JOINT_TYPES = ("revolute", "continuous", "prismatic")
+XACRO_TAG = "{http://www.ros.org/wiki/xacro}"  # ElementTree's spelling of the xacro: namespace
 
 
 @dataclass(frozen=True)
@@ -110,6 +114,10 @@ def parse_chain(
         raise ValueError(f"urdf: not well-formed XML ({error})") from None
     if root.tag != "robot":
         raise ValueError(f"urdf: expected a <robot> root element, got <{root.tag}>")
+    if any(element.tag.startswith(XACRO_TAG) for element in root.iter()):
+        raise ValueError(
+            "urdf: this is a xacro file (it has <xacro:...> elements): expand it first, `xacro in.xacro > out.urdf`"
+        )
 
     link_elements = {}
     for element in root.findall("link"):
@@ -127,7 +135,7 @@ def parse_chain(
         joint_to_child[child] = element
 
     if ee_link not in link_elements:
-        raise ValueError(f"ee_link: no link {ee_link!r} in the URDF (it has {len(link_elements)} links)")
+        raise ValueError(f"ee_link: no link {ee_link!r} in the URDF; {links_phrase(list(link_elements))}")
     if base_link is not None and base_link not in link_elements:
         raise ValueError(f"base_link: no link {base_link!r} in the URDF")
 
@@ -181,6 +189,23 @@ def resolve_mesh_filename(filename: str, urdf_dir: Path | None, search_dirs: tup
     return str(candidate.resolve()) if candidate.is_file() else None
 
 
+def link_names(urdf_text: str) -> list[str]:
+    """Every link's name, in file order: the choices of an end-effector (and base) link."""
+    try:
+        root = ElementTree.fromstring(urdf_text)
+    except ElementTree.ParseError as error:
+        raise ValueError(f"urdf: not well-formed XML ({error})") from None
+    return [element.get("name") for element in root.findall("link")]
+
+
+def links_phrase(names: list[str], shown: int = 20) -> str:
+    """ "its links: a, b, c" for an error message, shortened past `shown` names."""
+    if not names:
+        return "it has no links"
+    listed = ", ".join(names[:shown]) + (f" and {len(names) - shown} more" if len(names) > shown else "")
+    return f"its links: {listed}"
+
+
 # --- element readers ---------------------------------------------------------------------------
 def _required_attribute(element, attribute: str, what: str) -> str:
     value = element.get(attribute)
@@ -208,6 +233,16 @@ def _floats(text: str | None, count: int, default: tuple[float, ...], what: str)
     return values
 
 
+def _float(text: str | None, what: str, default: float | None = None) -> float:
+    """One number from an attribute; a one-line error naming it when it is missing or not a number."""
+    if text is None and default is not None:
+        return default
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"urdf: {what} expected a number, got {text!r}") from None
+
+
 def _read_origin(element, what: str) -> Origin:
     if element is None:
         return Origin()
@@ -221,7 +256,10 @@ def _read_joint(element) -> JointDescription:
     name = element.get("name")
     joint_type = element.get("type")
     if joint_type not in SUPPORTED_JOINT_TYPES:
-        raise ValueError(f"urdf: joint {name!r} has type {joint_type!r}, expected one of {SUPPORTED_JOINT_TYPES}")
+        raise ValueError(
+            f"urdf: joint {name!r} on the chain has type {joint_type!r}, expected one of {SUPPORTED_JOINT_TYPES} "
+            f"(to start the chain below it, give base_link)"
+        )
     axis_element = element.find("axis")
     axis = _floats(
         axis_element.get("xyz") if axis_element is not None else None, 3, (1.0, 0.0, 0.0), f"joint {name!r} axis"
@@ -230,12 +268,19 @@ def _read_joint(element) -> JointDescription:
     if joint_type != "fixed" and not norm > 0:
         raise ValueError(f"urdf: joint {name!r} has a zero axis")
     axis = tuple(value / norm for value in axis) if norm > 0 else axis
+    mimic = element.find("mimic")
+    if mimic is not None and joint_type != "fixed":
+        raise ValueError(
+            f"urdf: joint {name!r} on the chain mimics {mimic.get('joint')!r}; IKDP moves every joint freely: "
+            f"choose an ee_link above it"
+        )
     lower = upper = None
     if joint_type in ("revolute", "prismatic"):
         limit = element.find("limit")
         if limit is None or limit.get("lower") is None or limit.get("upper") is None:
             raise ValueError(f"urdf: {joint_type} joint {name!r} needs <limit lower=... upper=...>")
-        lower, upper = float(limit.get("lower")), float(limit.get("upper"))
+        lower = _float(limit.get("lower"), f"joint {name!r} lower limit")
+        upper = _float(limit.get("upper"), f"joint {name!r} upper limit")
         if not lower <= upper:
             raise ValueError(f"urdf: joint {name!r} has lower limit {lower} above upper limit {upper}")
     return JointDescription(
@@ -268,10 +313,11 @@ def _read_geometry(element, what: str, urdf_dir: Path | None, search_dirs: tuple
     if shape.tag == "box":
         return Geometry(kind="box", origin=origin, size=_floats(shape.get("size"), 3, (0.0, 0.0, 0.0), f"{what} box"))
     if shape.tag == "cylinder":
-        radius, length = float(shape.get("radius", 0)), float(shape.get("length", 0))
+        radius = _float(shape.get("radius"), f"{what} cylinder radius", 0.0)
+        length = _float(shape.get("length"), f"{what} cylinder length", 0.0)
         return Geometry(kind="cylinder", origin=origin, size=(radius, length))
     if shape.tag == "sphere":
-        return Geometry(kind="sphere", origin=origin, size=(float(shape.get("radius", 0)),))
+        return Geometry(kind="sphere", origin=origin, size=(_float(shape.get("radius"), f"{what} sphere radius", 0.0),))
     return None  # a geometry we cannot draw (capsule, heightfield): nothing to keep
 
 

@@ -28,3 +28,10 @@ def test_a_benchmark_script_starts(name):
     )
     assert result.returncode == 0, result.stderr[-1500:]
     assert "usage" in result.stdout.lower()
+
+
+def test_the_robot_benchmark_names_its_results_after_the_checkpoint():
+    from benchmarks.robot_benchmark import default_output
+
+    assert default_output("/any/checkpoints/ikdp_panda.pt").name == "robot_panda.json"  # the Panda's file, as before
+    assert default_output("runs/my_arm.pt") == REPO / "benchmarks" / "results" / "robot_my_arm.json"

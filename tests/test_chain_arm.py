@@ -61,6 +61,23 @@ def test_panda_forward_kinematics_matches_pytorch_kinematics(panda):
     torch.testing.assert_close(position32.double(), reference[:, :3, 3], atol=1e-5, rtol=0)
 
 
+@pytest.mark.parametrize(
+    ("urdf", "ee_link"),
+    [
+        ("z1_description/urdf/z1.urdf", "gripperStator"),
+        ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),
+    ],
+)
+def test_arms_a_user_brings_match_pytorch_kinematics(urdf, ee_link):
+    """The Z1 (dynamics, a fixed tool link after the last joint), the Kinova (continuous joints, limits far from 0)."""
+    arm = ChainArm.from_urdf(example_robot_data_file(urdf), ee_link)
+    joints = poses(arm, 128)
+    reference = pk_chain(example_robot_data_file(urdf).read_bytes(), ee_link).forward_kinematics(joints).get_matrix()
+    rotation, position = arm.end_effector_frame(joints)
+    torch.testing.assert_close(position, reference[:, :3, 3], atol=1e-5, rtol=0)
+    torch.testing.assert_close(rotation, reference[:, :3, :3], atol=1e-5, rtol=0)
+
+
 def test_every_link_pose_matches_pytorch_kinematics_on_a_mixed_chain():
     arm = mixed_arm()
     joints = poses(arm, 64)
@@ -293,6 +310,8 @@ def test_robot_names_load(panda):
     assert panda.urdf_path.endswith("panda.urdf") and panda.joint_names[0] == "panda_joint1"
     ur5 = load_robot("ur5")
     assert ur5.num_joints == 6 and ur5.ee_link == "tool0"
+    z1 = load_robot("z1")
+    assert z1.num_joints == 6 and z1.ee_link == "gripperStator" and z1.base_link == "world"
     assert load_robot("spatial3").num_joints == 6
     with pytest.raises(ValueError, match="unknown robot"):
         load_robot("pr2")

@@ -148,3 +148,20 @@ def test_initial_noise_sets_x_t_so_two_samplers_start_from_the_same_noise(tiny_c
     assert not torch.allclose(other.angles, given.angles)  # the noise given is the noise used
     with pytest.raises(ValueError, match=r"initial_noise: expected x_T of shape \(1, 4, "):
         solver.solve(target, num_samples=4, initial_noise=torch.zeros(4, dim))
+
+
+@pytest.mark.slow
+def test_the_shipped_z1_model_keeps_its_measured_accuracy():
+    """docs/ROBOTS.md measured 4.7 mm raw DDPM median and 98.9 % of 1000 targets within 1 mm and 1 degree refined."""
+    solver = ikdp.load("ikdp_z1")
+    arm = solver.arm
+    assert (arm.ee_link, arm.num_joints, arm.target_dim) == ("gripperStator", 6, 7)
+    targets = arm.end_effector(arm.random_poses(100, generator=torch.Generator().manual_seed(5)))
+    out = solver.solve(
+        targets, num_samples=16, sampler="dpmpp2m", steps=10, refine_steps=5, generator=torch.Generator().manual_seed(0)
+    )
+    valid = (out.position_error < 1e-3) & (out.rotation_error < math.radians(1.0))
+    assert valid.any(dim=1).float().mean() >= 0.95
+    assert int(arm.limit_violations(out.raw_angles).sum()) == 0 and int(arm.limit_violations(out.angles).sum()) == 0
+    raw = arm.position_error(out.raw_angles[:, :1], targets[:, None])
+    assert raw.median() <= 0.02  # DPM-Solver++-10 measured 5.9 mm on 1000 targets; the issue asked for 20

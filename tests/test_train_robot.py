@@ -1,6 +1,7 @@
 """`ikdp.train --robot/--urdf`: a chain model trains, saves, loads and solves pose targets within the limits."""
 
 import math
+from dataclasses import replace
 
 import pytest
 import torch
@@ -71,6 +72,7 @@ def test_any_urdf_trains_with_its_end_effector_link(tmp_path):
     assert solver.arm.target_dim == 3 and solver.arm.num_joints == 4
     out = solver.solve([[1.0, 0.5, 0.2]], num_samples=2)
     assert out.angles.shape == (1, 2, 4) and out.rotation_error is None
+    assert "| two_links.urdf (tip), 4 joints, position targets |" in describe([str(arm_checkpoint)])
 
 
 def test_a_robot_needs_its_end_effector_link(tmp_path):
@@ -82,3 +84,32 @@ def test_a_robot_needs_its_end_effector_link(tmp_path):
 def test_a_film_denoiser_narrower_than_its_features_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"hidden \(16\) must be at least its 20 input features"):
         train(robot_config(tmp_path, hidden=16))
+
+
+def test_a_missing_end_effector_link_lists_the_urdfs_links(tmp_path):
+    urdf = tmp_path / "two_links.urdf"
+    urdf.write_text(spatial_arm_urdf(2))
+    with pytest.raises(ValueError, match=r"--ee-link NAME.*its links: base, bone0_yaw, .*, tip$"):
+        train(robot_config(tmp_path, robot="", urdf=str(urdf), ee_link=""))
+
+
+def test_base_link_starts_the_chain_below_the_root(tmp_path):
+    urdf = tmp_path / "two_links.urdf"
+    urdf.write_text(spatial_arm_urdf(2))
+    config = robot_config(tmp_path, robot="", urdf=str(urdf), ee_link="tip", base_link="bone0_pitch", target="position")
+    solver = ikdp.load(train(replace(config, steps=2)))
+    assert solver.arm.base_link == "bone0_pitch" and solver.arm.joint_names == ["joint1_yaw", "joint1_pitch"]
+    with pytest.raises(ValueError, match="base_link: --base-link goes with --urdf"):
+        train(robot_config(tmp_path, base_link="panda_link0"))
+
+
+def test_a_joint_locked_by_equal_limits_is_refused_before_training(tmp_path):
+    urdf = tmp_path / "locked.urdf"
+    urdf.write_text(
+        spatial_arm_urdf(1)
+        .replace('type="continuous"', 'type="revolute"', 1)
+        .replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 1"/><limit lower="0.5" upper="0.5"/>', 1)
+    )
+    with pytest.raises(ValueError, match="joint 'joint0_yaw' has equal lower and upper limits"):
+        train(robot_config(tmp_path, robot="", urdf=str(urdf), ee_link="tip", target="position"))
+    assert not (tmp_path / "robot.pt").exists()

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from ikdp.robots import example_robot_data_file
-from ikdp.urdf import parse_chain, read_chain
+from ikdp.urdf import link_names, parse_chain, read_chain
 
 PANDA_URDF = "panda_description/urdf/panda.urdf"
 
@@ -133,3 +133,58 @@ def test_unsupported_joint_type_and_missing_limits_are_refused():
     assert "not well-formed" in one_line_error(parse_chain, "<robot><link name='a'></robot>", "a")
     bad_origin = small_robot(joint("ab", "revolute", "a", "b", "<origin xyz='1 2'/><limit lower='0' upper='1'/>"))
     assert "3 numbers" in one_line_error(parse_chain, bad_origin, "b")
+
+
+# --- what a user's URDF brings: example-robot-data's arms beyond the Panda ------------------------
+Z1_URDF = "z1_description/urdf/z1.urdf"
+KINOVA_URDF = "kinova_description/robots/kinova.urdf"
+
+
+def test_z1_reads_through_dynamics_transmissions_and_a_fixed_tool_link():
+    chain = read_chain(example_robot_data_file(Z1_URDF), "gripperStator")
+    assert chain.base_link == "world"  # the root, above a fixed joint to the arm's own base
+    assert [joint.name for joint in chain.movable_joints] == [f"joint{index}" for index in range(1, 7)]
+    assert [joint.type for joint in (chain.joints[0], chain.joints[-1])] == ["fixed", "fixed"]
+    second = chain.movable_joints[1]
+    assert (second.lower, second.upper) == (0.0, 2.9670597283903604)  # beside <dynamics damping friction>
+    assert all(geometry.path is not None for link in chain.links[1:] for geometry in link.visuals)
+
+
+def test_continuous_joints_ignore_a_limit_the_urdf_gives_them():
+    chain = read_chain(example_robot_data_file(KINOVA_URDF), "j2s6s200_end_effector")
+    kinds = [joint.type for joint in chain.movable_joints]
+    assert kinds == ["continuous", "revolute", "revolute", "continuous", "revolute", "continuous"]
+    first = chain.movable_joints[0]
+    assert (first.lower, first.upper) == (None, None)  # its <limit lower="-6.28" upper="6.28"> is not a limit
+
+
+def test_unknown_end_effector_names_the_links_to_choose_from():
+    message = one_line_error(read_chain, example_robot_data_file(Z1_URDF), "Fixed_Jaw")
+    assert message.startswith("ee_link: no link 'Fixed_Jaw'") and "link06, gripperStator, gripperMover" in message
+    assert link_names(small_robot(CHAIN)) == ["a", "b", "c", "d"]
+    many = "<robot name='r'>" + "".join(f"<link name='l{index}'/>" for index in range(25)) + "</robot>"
+    assert one_line_error(parse_chain, many, "hand").endswith("l19 and 5 more")
+
+
+def test_a_mimic_joint_on_the_chain_is_refused_and_one_off_it_is_not():
+    mimic = "<limit lower='-1' upper='1'/><mimic joint='ab' multiplier='-1'/>"
+    fingers = small_robot(joint("ab", "revolute", "a", "b") + joint("bc", "revolute", "b", "c", mimic))
+    assert "mimics 'ab'" in one_line_error(parse_chain, fingers, "c")
+    assert [joint.name for joint in parse_chain(fingers, "b").joints] == ["ab"]
+
+
+def test_xacro_and_unexpanded_numbers_are_refused_in_one_line():
+    xacro = (
+        "<robot name='r' xmlns:xacro='http://www.ros.org/wiki/xacro'><xacro:property name='pi' value='3.14'/>"
+        "<link name='a'/></robot>"
+    )
+    assert "xacro" in one_line_error(parse_chain, xacro, "a")
+    unexpanded = small_robot(joint("ab", "revolute", "a", "b", "<limit lower='-${pi}' upper='1'/>"))
+    message = one_line_error(parse_chain, unexpanded, "b")
+    assert "joint 'ab' lower limit" in message and "'-${pi}'" in message
+
+
+def test_a_floating_joint_on_the_chain_says_to_start_below_it():
+    mobile = small_robot(joint("ab", "floating", "a", "b", "") + joint("bc", "revolute", "b", "c"))
+    assert "base_link" in one_line_error(parse_chain, mobile, "c")
+    assert [joint.name for joint in parse_chain(mobile, "c", base_link="b").joints] == ["bc"]
