@@ -179,7 +179,13 @@ class VizApp:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""
         with self.session.lock:
             constraints = self.constraint_controls.constraints()
-            request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints)
+            request = self.session.request(
+                self.panel,
+                arrival=arrival,
+                animate=animate,
+                constraints=constraints,
+                chosen_steps=self._chosen_steps,
+            )
             return self.worker.submit(lambda cancel: solve(request, cancel), self._solved, self._failed)
 
     def _solved(self, ticket: int, solved: Solved) -> None:

@@ -44,9 +44,19 @@ class Session:
         return target, clamped, changed
 
     def request(
-        self, panel: Panel, *, arrival: float | None = None, animate: bool = True, constraints: tuple = ()
+        self,
+        panel: Panel,
+        *,
+        arrival: float | None = None,
+        animate: bool = True,
+        constraints: tuple = (),
+        chosen_steps: int | None = None,
     ) -> SolveRequest:
-        """A solve of the current target with the panel's settings (a new seed first, if the panel asks)."""
+        """A solve of the current target with the panel's settings (a new seed first, if the panel asks).
+
+        `chosen_steps`: the steps the user chose for a sampler that can skip some, which the panel's slider
+        does not show while DDPM runs (it shows T); None reads the slider.
+        """
         if panel.new_seed.value:
             panel.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
         sampler = str(panel.sampler.value)
@@ -62,17 +72,19 @@ class Session:
             seed=int(panel.seed.value),
             arrival=time.perf_counter() if arrival is None else arrival,
             animate=animate,
-            **compare_settings(panel, sampler),
+            **compare_settings(panel, sampler, chosen_steps),
             constraints=tuple(constraints),
         )
 
 
-def compare_settings(panel: Panel, sampler: str) -> dict:
+def compare_settings(panel: Panel, sampler: str, chosen_steps: int | None = None) -> dict:
     """The comparison the panel asks for: another sampler from the same x_T, unless it is the sampler itself."""
     other = str(panel.learn.compare.value)
     if other == "off" or other == sampler or other not in SAMPLERS:
         return {}
     return {
         "compare_sampler": other,
-        "compare_steps": int(panel.steps.value) if SAMPLERS[other].supports_steps else None,
+        "compare_steps": (int(panel.steps.value) if chosen_steps is None else chosen_steps)
+        if SAMPLERS[other].supports_steps
+        else None,
     }
