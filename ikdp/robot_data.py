@@ -29,14 +29,17 @@ def example_robot_data_file(relative: str) -> Path:
 
 
 def installed_copy(recorded: str | Path) -> Path | None:
-    """`recorded` if it exists here; else the file of example-robot-data it names, as installed here; else None."""
+    """The file of example-robot-data that `recorded` names, as installed in this environment; else `recorded`
+    itself if it exists; else None.
+
+    This environment's install comes first: a recorded path that happens to exist here may be a stale copy
+    (another venv, or a bare URDF copied beside a training run) without the meshes the viewer draws.
+    """
     path = Path(recorded)
-    if path.is_file():
-        return path
     text = path.as_posix()
-    if ROBOTS_FOLDER not in text:
-        return None
-    try:
-        return example_robot_data_file(text.rsplit(ROBOTS_FOLDER, 1)[1])
-    except ValueError:  # not installed, or a file this version does not ship
-        return None
+    if ROBOTS_FOLDER in text:
+        try:
+            return example_robot_data_file(text.rsplit(ROBOTS_FOLDER, 1)[1])
+        except ValueError:  # not installed, or a file this version does not ship
+            pass
+    return path if path.is_file() else None

@@ -297,6 +297,17 @@ def test_a_checkpoints_urdf_path_from_another_machine_finds_the_installed_copy(p
     assert missing.chain_description() is None and missing.urdf_path is None
 
 
+def test_a_recorded_urdf_copy_that_exists_here_yields_to_the_installed_one(panda, tmp_path):
+    # ikdp_panda.pt was trained on a GPU machine from a bare copy of the URDF: on the machine that copy came
+    # from it exists, without meshes beside it, and the 3-D view drew no robot (CI caught it)
+    bare = tmp_path / "example-robot-data/robots" / ROBOTS["panda"].urdf
+    bare.parent.mkdir(parents=True)
+    bare.write_text(Path(panda.urdf_path).read_text())
+    arm = ChainArm.from_config({**panda.to_config(), "urdf_path": str(bare)})
+    assert arm.urdf_path == panda.urdf_path != str(bare)  # example-robot-data's own file, meshes and all
+    assert arm.recorded_urdf_path == str(bare)
+
+
 def test_the_shipped_panda_model_names_this_machines_urdf():
     import ikdp
 
