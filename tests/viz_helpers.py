@@ -108,6 +108,13 @@ def dark_fraction(image: np.ndarray, pixels: np.ndarray, *, radius: int = 2, thr
     return found / max(1, len(pixels))
 
 
+def canvas_changed_share(page, before: np.ndarray, after: np.ndarray, *, threshold: int = 40) -> float:
+    """The share of the canvas's pixels whose largest channel moved by more than `threshold` between two shots."""
+    x, y, width, height = (int(value) for value in canvas_box(page))
+    changed = np.abs(after[y : y + height, x : x + width].astype(int) - before[y : y + height, x : x + width])
+    return float((changed.max(axis=-1) > threshold).mean())
+
+
 def read_png(data: bytes) -> np.ndarray:
     from PIL import Image
 
