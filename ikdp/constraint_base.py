@@ -5,7 +5,8 @@ checks it against the arm (a one-line ValueError naming the problem) and spreads
 M = B x K sampled rows; the bound form answers what the reverse loop and the refinement ask:
 - `guide(joints)`: a correction to the denoiser's clean estimate x̂0, in joint space, applied
   at every step (ikdp/guidance.py), so the whole reverse process bends toward the constraint;
-- `rows(joints)`: extra rows (error, Jacobian) for damped least squares, so refinement keeps it;
+- `penetration_rows(joints)`: depths and their gradients that refinement clears, second to the
+  target (in its null space), so refinement keeps the constraint;
 - `violation(joints)`: >= 0, zero where the constraint holds (the check and the viewer's colours).
 """
 
@@ -76,8 +77,11 @@ class BoundConstraint:
         """joints (M, J) -> a correction to add (M, J), or None: no guidance."""
         return None
 
-    def rows(self, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
-        """joints (M, J) -> extra damped-least-squares rows, error (M, E) and Jacobian (M, E, J), or None."""
+    def penetration_rows(self, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
+        """joints (M, J) -> depths (M, P) refinement brings to zero, second to the target, their gradients (M, P, J).
+
+        None: nothing for refinement to keep (ikdp.refine.null_space_step says how they are met).
+        """
         return None
 
     def violation(self, joints: torch.Tensor) -> torch.Tensor:

@@ -9,8 +9,9 @@ the hook ikdp/sampling.py calls at each step:
    noised to that step's level, alpha x0 + sigma z (RePaint, Lugmayr et al. 2022): the free
    coordinates are denoised beside a state that is consistent with the locks.
 Its `refine_task()` is what damped least squares minimises instead of the end-effector error:
-the (partial) target's rows, then one row per obstacle constraint (its penetration depth),
-with the locked joints' columns removed so a step never moves them.
+the (partial) target's rows first, then each obstacle constraint's penetration depth, cleared in
+the null space of the target's rows (ikdp.refine.null_space_step); the locked joints' columns
+are removed from both, so a step never moves them.
 """
 
 from __future__ import annotations
@@ -145,27 +146,30 @@ class ConstrainedTask:
 
     def error(self, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         error, _ = self._target_rows(joints, targets)
-        rows = joints.reshape(-1, joints.shape[-1])
-        extra = [item.rows(rows) for item in self.constraints.others]
-        extra = [found[0].reshape(*joints.shape[:-1], -1) for found in extra if found is not None]
-        return torch.cat([error, *extra], dim=-1)
+        penetrations = self.penetrations(joints)
+        return error if penetrations is None else torch.cat([error, -penetrations[0]], dim=-1)
 
     def linearize(self, joints: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         error, partial = self._target_rows(joints, targets)
         error = clamp_task_error(error, self.arm.position_dim, self.max_position, math.pi / 4)
         jacobian = self.arm.jacobian(joints) if partial is None else partial.jacobian(joints, targets)
+        return error, self._free_columns(jacobian)
+
+    def penetrations(self, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
         rows = joints.reshape(-1, joints.shape[-1])
-        errors, jacobians = [error], [jacobian]
-        for item in self.constraints.others:
-            found = item.rows(rows)
-            if found is not None:
-                row_error = clamp_task_error(found[0], found[0].shape[-1], self.max_position, math.pi)
-                errors.append(row_error.reshape(*joints.shape[:-1], -1))
-                jacobians.append(found[1].reshape(*joints.shape[:-1], -1, joints.shape[-1]))
-        jacobian = torch.cat(jacobians, dim=-2)
-        if self.constraints.locked is not None:
-            jacobian = jacobian * ~self.constraints.locked.mask.to(jacobian.device)
-        return torch.cat(errors, dim=-1), jacobian
+        found = [item.penetration_rows(rows) for item in self.constraints.others]
+        found = [item for item in found if item is not None]
+        if not found:
+            return None
+        depths = torch.cat([depth for depth, _ in found], dim=-1).reshape(*joints.shape[:-1], -1)
+        gradients = torch.cat([gradient for _, gradient in found], dim=-2)
+        return depths, self._free_columns(gradients.reshape(*joints.shape[:-1], -1, joints.shape[-1]))
+
+    def _free_columns(self, jacobian: torch.Tensor) -> torch.Tensor:
+        """The locked joints' columns zeroed, so no step moves them."""
+        if self.constraints.locked is None:
+            return jacobian
+        return jacobian * ~self.constraints.locked.mask.to(jacobian.device)
 
     def hold(self, joints: torch.Tensor) -> torch.Tensor:
         return self.constraints.hold(joints)

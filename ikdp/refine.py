@@ -78,8 +78,42 @@ class RefineTask(Protocol):
     def linearize(self, joints: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The clamped task error (..., E) and its Jacobian (..., E, J): a small step dq changes it by -J dq."""
 
+    def penetrations(self, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
+        """(..., J) -> depths (..., P) to bring down to zero, second to the target, and their gradients (..., P, J).
+
+        None: nothing to avoid. They are met in the null space of the target's rows (`null_space_step`).
+        """
+
     def hold(self, joints: torch.Tensor) -> torch.Tensor:
         """(..., J) after a step -> the same with every held (locked) joint put back exactly."""
+
+
+NULL_SPACE_MAX_STEP = 0.3  # the largest joint move (radians) one clearing step may add: the null space can be thin
+
+
+def null_space_step(
+    jacobian: torch.Tensor,
+    step: torch.Tensor,
+    depths: torch.Tensor,
+    gradients: torch.Tensor,
+    damping_squared: float,
+    max_step: float = NULL_SPACE_MAX_STEP,
+) -> torch.Tensor:
+    """The move (..., J) that clears the penetration `step` leaves, without moving the target's rows to first order.
+
+    Task priority (Siciliano and Slotine 1991): the target's rows (`jacobian` (..., E, J)) come
+    first; the depths (..., P) still predicted after `step`, d + G step, are cleared by moving
+    along the gradients' parts in the target's null space, G (I - J^T (J J^T + l^2 I)^-1 J). As
+    one more row stacked under a 6-row pose target, a 7-joint arm's system was square: each step
+    solved both exactly, with joint moves that threw 40 % of the samples far off the pose.
+    """
+    remaining = (depths + (gradients @ step[..., None])[..., 0]).clamp_min(0)  # (..., P) predicted depths
+    pulled = (jacobian[..., None, :, :] @ gradients[..., None])[..., 0]  # (..., P, E): J g per depth
+    along_target = dls_step(jacobian[..., None, :, :].expand(*pulled.shape[:-1], -1, -1), pulled, damping_squared)
+    projected = gradients - along_target  # (..., P, J): the gradients' parts that leave the target still
+    move = dls_step(projected, -remaining, damping_squared)
+    largest = move.abs().amax(dim=-1, keepdim=True)
+    return move * (max_step / largest.clamp_min(max_step))
 
 
 def damped_least_squares(
@@ -108,19 +142,43 @@ def damped_least_squares(
     targets = targets.double()
     max_position = max_miss_fraction * arm.span
     for _ in range(steps):
+        penetrations = None
         if task is None:
             error = clamp_task_error(arm.task_error(joints, targets), arm.position_dim, max_position, math.pi / 4)
             jacobian = arm.jacobian(joints)
         else:
             error, jacobian = task.linearize(joints, targets)
-        step = dls_step(jacobian, error, damping**2)
+            penetrations = task.penetrations(joints)
+        step = prioritized_step(jacobian, error, penetrations, damping**2)
         moved = arm.normalize_joints(joints + step)
         blocked = arm.blocked_by_limits(joints, step)
         if blocked is not None and bool(blocked.any()):
-            held_step = dls_step(jacobian * ~blocked[..., None, :], error, damping**2)  # blocked columns zeroed
+            held_step = prioritized_step(jacobian, error, penetrations, damping**2, ~blocked)  # blocked columns zeroed
             moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
         joints = moved if task is None else task.hold(moved)
     return joints.to(dtype)
+
+
+def prioritized_step(
+    jacobian: torch.Tensor,
+    error: torch.Tensor,
+    penetrations: tuple[torch.Tensor, torch.Tensor] | None,
+    damping_squared: float,
+    movable: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """The target's damped least-squares step, then (where there are) the penetrations cleared in its null space.
+
+    `movable` (..., J): False for joints the step must not move (their columns are zeroed).
+    """
+    if movable is not None:
+        jacobian = jacobian * movable[..., None, :]
+    step = dls_step(jacobian, error, damping_squared)
+    if penetrations is None:
+        return step
+    depths, gradients = penetrations
+    if movable is not None:
+        gradients = gradients * movable[..., None, :]
+    return step + null_space_step(jacobian, step, depths, gradients, damping_squared)
 
 
 def better_of(
