@@ -2,9 +2,9 @@
 
 Collision checks against obstacles and the gradient of the penetration depth need a shape
 that is cheap and smooth to move: spheres fixed in the link frames. Each link's collision
-geometry (meshes read with trimesh, or URDF boxes, cylinders and spheres) is cut along its
-principal axis into a few slabs, and each slab is covered by one sphere around its points,
-so the spheres contain every vertex and sampled surface point: a conservative cover.
+geometry (meshes read with trimesh, or URDF boxes, cylinders and spheres) is split into a
+few clusters of points, each covered by the smallest sphere around it, so the spheres contain
+every vertex and sampled surface point: a conservative cover.
 
 Fitting needs trimesh (the `[viz]` extra) and the URDF's meshes, so the result is stored:
 in memory per arm, in `ikdp/collision_spheres/` for the shipped robots (the Panda's is in
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +23,8 @@ import numpy as np
 import torch
 
 SHIPPED_FOLDER = Path(__file__).resolve().parent / "collision_spheres"
-MAX_SPHERES_PER_LINK = 5  # more spheres fit a long link tighter; each one costs every collision check
+MAX_SPHERES_PER_LINK = 4  # more spheres fit a link tighter; each one costs every collision check
+WORTHWHILE_SHRINK = 0.9  # a split is kept only if its larger half's sphere is at most this share of the one it splits
 SURFACE_SAMPLES = 2000  # points sampled on each mesh's surface besides its vertices: the cover is checked on them
 
 
@@ -156,25 +156,48 @@ def geometry_points(trimesh, geometry, generator: np.random.Generator) -> np.nda
 
 
 def cover_with_spheres(points: np.ndarray, max_spheres: int) -> list[tuple[np.ndarray, float]]:
-    """Spheres containing every point (P, 3): slabs along the principal axis, one sphere per slab.
+    """Spheres containing every point (P, 3): the largest sphere's points split in two until no split pays.
 
-    As many slabs as the points are long over wide (a forearm gets several, a flange one), so
-    each sphere is about as wide as the link and the cover stays tight.
+    Each split is 2-means started across the points' principal axis, and each part gets its
+    smallest enclosing sphere. Splitting stops at `max_spheres`, or when halving the largest
+    sphere would shrink it by less than `WORTHWHILE_SHRINK` (the Panda's arm links stop at 2, the
+    base, wrist and hand go on to 4). The Panda's cover sticks out 1.2 to 2.8 cm beyond its meshes
+    (median per link) with 26 spheres of 4.5 to 9.6 cm, against 1.5 to 4.4 cm with 20 spheres of
+    5.4 to 12.4 cm for one sphere per slab along the link's axis, the fit before.
     """
+    clusters, spheres = [points], [enclosing_sphere(points)]
+    while len(spheres) < max_spheres:
+        largest = max(range(len(spheres)), key=lambda index: spheres[index][1])
+        halves = split_in_two(clusters[largest])
+        if halves is None:
+            break
+        covers = [enclosing_sphere(half) for half in halves]
+        if max(radius for _, radius in covers) > WORTHWHILE_SHRINK * spheres[largest][1]:
+            break
+        clusters[largest : largest + 1], spheres[largest : largest + 1] = halves, covers
+    return spheres
+
+
+def split_in_two(points: np.ndarray, iterations: int = 20) -> list[np.ndarray] | None:
+    """2-means of the points (P, 3), started by the sign along their principal axis; None if they cannot split."""
     mean = points.mean(axis=0)
     _, _, axes = np.linalg.svd(points - mean, full_matrices=False)
-    axis = axes[0]
-    along = (points - mean) @ axis
-    across = np.linalg.norm((points - mean) - along[:, None] * axis, axis=1)
-    length, width = float(along.max() - along.min()), 2 * float(np.percentile(across, 95)) + 1e-9
-    count = int(min(max_spheres, max(1, math.ceil(length / width))))
-    edges = np.linspace(along.min(), along.max(), count + 1)
-    spheres = []
-    for index in range(count):
-        inside = (along >= edges[index]) & (along <= edges[index + 1])
-        if not inside.any():
-            continue
-        slab = points[inside]
-        center = (slab.max(axis=0) + slab.min(axis=0)) / 2  # the slab's box centre: a smaller cover than its mean
-        spheres.append((center, float(np.linalg.norm(slab - center, axis=1).max())))
-    return spheres
+    second = (points - mean) @ axes[0] > 0
+    for _ in range(iterations):
+        if second.all() or not second.any():
+            return None
+        first_center, second_center = points[~second].mean(axis=0), points[second].mean(axis=0)
+        nearer_second = ((points - second_center) ** 2).sum(1) < ((points - first_center) ** 2).sum(1)
+        if (nearer_second == second).all():
+            break
+        second = nearer_second
+    return [points[~second], points[second]]
+
+
+def enclosing_sphere(points: np.ndarray, iterations: int = 200) -> tuple[np.ndarray, float]:
+    """A near-smallest sphere around the points (Badoiu and Clarkson 2003: step toward the farthest point)."""
+    center = (points.max(axis=0) + points.min(axis=0)) / 2
+    for iteration in range(iterations):
+        farthest = points[np.argmax(((points - center) ** 2).sum(axis=1))]
+        center = center + (farthest - center) / (iteration + 2)
+    return center, float(np.sqrt(((points - center) ** 2).sum(axis=1).max()))  # every point inside, exactly
