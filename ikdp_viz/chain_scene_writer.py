@@ -216,10 +216,13 @@ class ChainSceneWriter(SceneWriter):
         # (S+1, K, 3) each: following one sample (the default), its skeleton blue and the others' light grey
         self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, highlight, self.trail_of)
         self._trail_colors = trail_colors(ramp, 1)  # (S+1, K, 2, 3): one hand step per sample
-        self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
         self._ghost_colors = ghost_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
         if follows_one(self.trail_of):
             self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
+        tints = self.constraint_tints()
+        if tints is not None:  # every robot and skeleton green where its constraints hold at that state, red where not
+            self._colors = self._ghost_colors = tints
+        self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
 
     def _write_refined(self) -> None:
         view = self.solved.view
