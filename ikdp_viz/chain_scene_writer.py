@@ -24,6 +24,7 @@ import viser
 import ikdp
 from ikdp_viz import chain_readouts
 from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.constraint_scene import sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.panel import Panel
@@ -221,7 +222,9 @@ class ChainSceneWriter(SceneWriter):
             self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
         tints = self.constraint_tints()
         if tints is not None:  # every robot and skeleton green where its constraints hold at that state, red where not
-            self._colors = self._ghost_colors = tints
+            self._colors = tints
+            # the see-through robots in full colour: at their opacity the lighter tints read as grey
+            self._ghost_colors = sample_tints(self.solved.state_violation, highlight, others_full=True)
         self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
 
     def _write_refined(self) -> None:

@@ -34,12 +34,13 @@ from ikdp_viz.constraint_scene import (
     holds,
     overlay_segments,
 )
+from ikdp_viz.scene import line_colors
 from ikdp_viz.scene_writer import Call
 
 OBSTACLE_COLOR = (200, 60, 60)
-AXIS_COLORS = {"x": (220, 40, 40), "y": (30, 160, 60), "z": (40, 90, 230)}  # as the hand frame's axes
+FREE_AXIS_COLOR = (235, 140, 0)  # amber: not one of the gizmo's own red, green and blue handles
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
-FREE_AXIS_RING = 0.07  # the ring about it (the turn left free), radius in reach radii
+FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
 
 
 class ConstraintControls:
@@ -98,7 +99,10 @@ class ConstraintControls:
                 "follow (one continuous solution)", False, hint="Stay near, and keep the sample nearest the last pose"
             )
             self.color_states = gui.add_checkbox(
-                "colour poses by constraint", True, hint="The highlighted sample at every step: green holds, red not"
+                "colour poses by constraint",
+                True,
+                hint="Every sample at the step shown, and the highlighted one's past steps (faint): green where "
+                "the constraints hold, red where not",
             )
             self.readout = gui.add_markdown("No constraint.")
         self.add_button.on_click(lambda _: self.add_obstacle())
@@ -163,9 +167,8 @@ class ConstraintControls:
         axis = TARGET_KINDS.get(kind)
         if kind == "full pose" or axis is None:
             return
-        name = kind.split()[1]  # "free z axis" -> "z"
         self.target_marks = self.server.scene.add_line_segments(
-            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.reach), AXIS_COLORS[name],
+            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.reach), FREE_AXIS_COLOR,
             thickness=4.0, thickness_units="screen",
         )  # fmt: skip
 
@@ -278,10 +281,10 @@ class ConstraintControls:
             choice = int(np.argmin(np.abs(solved.final_angles - self.last_pose).sum(axis=-1)))
         points = view.joints[:, choice] if hasattr(view, "joints") else view.points[:, choice]
         segments, colors = overlay_segments(points, solved.state_violation[:, choice])
-        if hasattr(view, "joints"):
-            segments[..., 2] += 0.01 * float(np.sum(view.lengths))  # above the planar arms
+        if hasattr(view, "joints"):  # above the grid, under the planar arms of the step shown (lifted higher)
+            segments[..., 2] += 0.001 * float(np.sum(view.lengths))
         self.overlay = self.server.scene.add_line_segments(
-            "/constraints/states", segments, colors, thickness=2.0, thickness_units="screen"
+            "/constraints/states", segments, line_colors(colors), thickness=2.0, thickness_units="screen"
         )
 
 

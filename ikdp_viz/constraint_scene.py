@@ -22,8 +22,11 @@ VIOLATES = (215, 50, 40)  # one that does not
 HOLDS_TOLERANCE = 0.01  # summed violation (radians of a locked joint, depth in the arm's unit) drawn as holding
 NEAR_WEIGHT = 0.6  # the pull toward the last pose (ikdp.tracking: 0.6 kept a Panda circle's jumps under 0.02 rad)
 # the samples not highlighted: the same two hues, lighter, so the highlighted one still stands out among K = 16
-HOLDS_LIGHT = (150, 215, 160)
-VIOLATES_LIGHT = (240, 160, 150)
+HOLDS_OTHERS = (110, 200, 130)
+VIOLATES_OTHERS = (235, 120, 105)
+# the overlay of the kept sample's past states: fainter still, a history under the poses of the step shown
+HOLDS_FAINT = (190, 230, 197)
+VIOLATES_FAINT = (247, 195, 187)
 
 # What a pose model's target asks for: the panel's choices, each with the free axis (end-effector frame) or None
 TARGET_KINDS = {
@@ -94,11 +97,14 @@ def holds(violation: np.ndarray) -> np.ndarray:
     return violation <= HOLDS_TOLERANCE
 
 
-def sample_tints(violation: np.ndarray, highlight: int) -> np.ndarray:
+def sample_tints(violation: np.ndarray, highlight: int, *, others_full: bool = False) -> np.ndarray:
     """(S+1, K) every sample's violation at every state -> (S+1, K, 3) uint8: green where it holds, red where not;
-    the highlighted sample in full colour, the others lighter."""
+    the highlighted sample in full colour, the others lighter (`others_full`: in full colour too, for see-through
+    robots whose opacity lightens them already)."""
     holding = holds(np.asarray(violation))[..., None]
-    colors = np.where(holding, np.array(HOLDS_LIGHT), np.array(VIOLATES_LIGHT))
+    if others_full:
+        return np.where(holding, np.array(HOLDS), np.array(VIOLATES)).astype(np.uint8)
+    colors = np.where(holding, np.array(HOLDS_OTHERS), np.array(VIOLATES_OTHERS))
     colors[:, highlight] = np.where(holding[:, highlight], np.array(HOLDS), np.array(VIOLATES))
     return colors.astype(np.uint8)
 
@@ -106,7 +112,7 @@ def sample_tints(violation: np.ndarray, highlight: int) -> np.ndarray:
 def met_text(violation: np.ndarray, state: int, *, colored: bool) -> str:
     """The readout line for the state shown: how many of the K samples meet the constraints there."""
     met = int(holds(np.asarray(violation)[state]).sum())
-    text = f"**Constraints** met by {met} of {violation.shape[1]} samples at this step"
+    text = f"**Constraints hold** for {met} of {violation.shape[1]} samples at this step"
     return text + (" (green; red: not)" if colored else "")
 
 
@@ -121,12 +127,12 @@ def first_holding_state(violation: np.ndarray) -> int | None:
 
 def overlay_segments(points: np.ndarray, violation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One sample's joint positions at every state (S+1, P, 2 or 3) and violations (S+1,) -> line segments
-    (S * (P-1)... , 2, 3) and their colours (same, uint8): green where the state holds, red where not."""
+    (S * (P-1)... , 2, 3) and their colours (same, uint8): faint green where the state holds, faint red where not."""
     points = np.asarray(points, dtype=np.float32)
     if points.shape[-1] == 2:
         points = np.concatenate([points, np.zeros((*points.shape[:-1], 1), np.float32)], axis=-1)
     segments = np.stack([points[:, :-1], points[:, 1:]], axis=-2)  # (S+1, P-1, 2, 3)
-    colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS), np.array(VIOLATES))
+    colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS_FAINT), np.array(VIOLATES_FAINT))
     colors = np.broadcast_to(colors, segments.shape).astype(np.uint8)
     return segments.reshape(-1, 2, 3), colors.reshape(-1, 2, 3)
 

@@ -27,7 +27,7 @@ import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
 from ikdp_viz.compare import CompareNodes, compare_curve
-from ikdp_viz.constraint_scene import HOLDS, HOLDS_LIGHT, VIOLATES, VIOLATES_LIGHT, met_text, sample_tints
+from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, met_text, sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.legend import Entry, Swatch, legend_html
@@ -461,8 +461,8 @@ class SceneWriter:
         if self.constraint_tints() is None:
             return []
         return [
-            Entry(Swatch(HOLDS, faint=HOLDS_LIGHT), "constraints hold at the step shown (the others lighter)"),
-            Entry(Swatch(VIOLATES, faint=VIOLATES_LIGHT), "constraints fail at the step shown"),
+            Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), "constraints hold at the step shown (the others lighter)"),
+            Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), "constraints fail at the step shown"),
         ]
 
     def set_constraint_colors(self, on: bool) -> None:

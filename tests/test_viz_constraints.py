@@ -12,9 +12,11 @@ import ikdp
 from ikdp.rotations import quaternion_to_matrix
 from ikdp_viz.constraint_scene import (
     HOLDS,
-    HOLDS_LIGHT,
+    HOLDS_FAINT,
+    HOLDS_OTHERS,
     VIOLATES,
-    VIOLATES_LIGHT,
+    VIOLATES_FAINT,
+    VIOLATES_OTHERS,
     build_constraints,
     first_holding_state,
     follow_choice,
@@ -31,17 +33,18 @@ def test_the_overlay_colours_each_state_by_whether_it_holds():
     points[:, :, 0] = np.arange(4)
     segments, colors = overlay_segments(points, np.array([0.5, 0.02, 0.0]))
     assert segments.shape == (9, 2, 3) and colors.shape == (9, 2, 3)
-    assert (colors[:3] == VIOLATES).all() and (colors[3:6] == VIOLATES).all() and (colors[6:] == HOLDS).all()
+    assert (colors[:6] == VIOLATES_FAINT).all() and (colors[6:] == HOLDS_FAINT).all()
     assert first_holding_state(np.array([0.5, 0.0, 0.2, 0.0, 0.0])) == 3
     assert first_holding_state(np.array([0.0, 0.0, 0.3])) is None
 
 
 def test_every_sample_is_tinted_by_its_own_violation_the_highlighted_one_in_full():
-    violation = np.array([[0.5, 0.0, 0.3], [0.0, 0.0, 0.2]])  # 2 states of K = 3
+    violation = np.array([[0.5, 0.0, 0.3], [0.0, 0.2, 0.0]])  # 2 states of K = 3
     tints = sample_tints(violation, highlight=2)
     assert tints.shape == (2, 3, 3) and tints.dtype == np.uint8
-    assert (tints[0, 0] == VIOLATES_LIGHT).all() and (tints[0, 1] == HOLDS_LIGHT).all()
-    assert (tints[1, 0] == HOLDS_LIGHT).all() and (tints[:, 2] == VIOLATES).all()
+    assert (tints[0, 0] == VIOLATES_OTHERS).all() and (tints[0, 1] == HOLDS_OTHERS).all()
+    assert (tints[1, 0] == HOLDS_OTHERS).all() and (tints[1, 1] == VIOLATES_OTHERS).all()
+    assert (tints[0, 2] == VIOLATES).all() and (tints[1, 2] == HOLDS).all()
 
 
 def test_follow_keeps_the_nearest_sample_that_reaches():
@@ -81,14 +84,14 @@ def test_every_sample_on_screen_is_coloured_by_constraint_and_counted(app):
     for state in (0, len(violation) // 2, len(violation) - 1):
         app.show_state(state)
         met = holds(violation[state])
-        assert f"met by {int(met.sum())} of {K} samples at this step" in app.panel.readout_text.content
-        expected = np.where(met[:, None], np.array(HOLDS_LIGHT), np.array(VIOLATES_LIGHT))
+        assert f"hold** for {int(met.sum())} of {K} samples at this step" in app.panel.readout_text.content
+        expected = np.where(met[:, None], np.array(HOLDS_OTHERS), np.array(VIOLATES_OTHERS))
         others = np.arange(K) != app.highlight_index()
         assert np.array_equal(writer._colors[state][others], expected[others])  # each arm's own colour
     assert "constraints hold at the step shown" in app.panel.learn.legend.content
     controls.color_states.value = False  # back to the grey samples and the blue highlighted one
     settle(app)
-    assert not np.isin(writer._colors[-1], [HOLDS_LIGHT, VIOLATES_LIGHT]).all(axis=-1).any()
+    assert not np.isin(writer._colors[-1], [HOLDS_OTHERS, VIOLATES_OTHERS]).all(axis=-1).any()
     assert "(green" not in app.panel.readout_text.content and controls.overlay is None
     assert "constraints hold" not in app.panel.learn.legend.content
 
