@@ -222,9 +222,9 @@ class ChainSceneWriter(SceneWriter):
             self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
         tints = self.constraint_tints()
         if tints is not None:  # every robot and skeleton green where its constraints hold at that state, red where not
-            self._colors = tints
-            # the see-through robots in full colour: at their opacity the lighter tints read as grey
-            self._ghost_colors = sample_tints(self.solved.state_violation, highlight, others_full=True)
+            # in full colour: at the ghosts' opacity, and as thin lines sent as is (lighter on the page), the lighter
+            # tints of the planar arms read as grey; the highlighted robot is the opaque one
+            self._colors = self._ghost_colors = sample_tints(self.solved.state_violation, highlight, others_full=True)
         self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
 
     def _write_refined(self) -> None:
