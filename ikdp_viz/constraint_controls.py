@@ -27,6 +27,7 @@ import numpy as np
 import viser
 
 from ikdp_viz.constraint_scene import (
+    FREE_AXIS_COLOR,
     TARGET_KINDS,
     build_constraints,
     first_holding_state,
@@ -38,7 +39,6 @@ from ikdp_viz.scene import line_colors
 from ikdp_viz.scene_writer import Call
 
 OBSTACLE_COLOR = (200, 60, 60)
-FREE_AXIS_COLOR = (235, 140, 0)  # amber: not one of the gizmo's own red, green and blue handles
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
 FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
 

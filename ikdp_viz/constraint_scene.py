@@ -28,6 +28,8 @@ VIOLATES_OTHERS = (235, 120, 105)
 HOLDS_FAINT = (190, 230, 197)
 VIOLATES_FAINT = (247, 195, 187)
 
+FREE_AXIS_COLOR = (235, 140, 0)  # the free axis through the target: amber, none of the gizmo's red, green, blue
+
 # What a pose model's target asks for: the panel's choices, each with the free axis (end-effector frame) or None
 TARGET_KINDS = {
     "full pose": None,

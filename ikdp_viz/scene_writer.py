@@ -27,7 +27,15 @@ import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
 from ikdp_viz.compare import CompareNodes, compare_curve
-from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, met_text, sample_tints
+from ikdp_viz.constraint_scene import (
+    FREE_AXIS_COLOR,
+    HOLDS,
+    HOLDS_OTHERS,
+    VIOLATES,
+    VIOLATES_OTHERS,
+    met_text,
+    sample_tints,
+)
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.legend import Entry, Swatch, legend_html
@@ -458,12 +466,17 @@ class SceneWriter:
         return sample_tints(solved.state_violation, self.highlight_index())
 
     def constraint_legend_entries(self) -> list[Entry]:
-        if self.constraint_tints() is None:
-            return []
-        return [
-            Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), "constraints hold at the step shown (the others lighter)"),
-            Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), "constraints fail at the step shown"),
-        ]
+        """The Constraints folder's colours in the scene now: green and red, the free axis."""
+        entries = []
+        if self.constraint_tints() is not None:
+            entries += [
+                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), "constraints hold at the step shown (the others lighter)"),
+                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), "constraints fail at the step shown"),
+            ]
+        measure = getattr(self.solved.view, "rotation_measure", "rotation") if self.solved is not None else "rotation"
+        if measure not in ("rotation", "none"):
+            entries.append(Entry(Swatch(FREE_AXIS_COLOR), f"the hand's free {measure}: any turn about it counts"))
+        return entries
 
     def set_constraint_colors(self, on: bool) -> None:
         """Colour the samples by constraint, or not; redraws the state on screen."""

@@ -180,6 +180,7 @@ def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_
         angles = np.arccos(np.clip(reached @ asked, -1, 1))
         assert np.allclose(view.final_rotation_error, angles, atol=1e-4)  # the axis's angle, not the rotation's
         assert "(z axis)" in app.panel.readout_text.content
+        assert "free z axis: any turn about it counts" in app.panel.learn.legend.content
         controls.lock_boxes[6].value = True  # the other constraints keep working beside it
         controls.follow.value = True
         settle(app)
