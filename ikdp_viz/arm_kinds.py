@@ -35,8 +35,8 @@ class PlanarKind:
         """The target a dragged gizmo asks for: its (x, y)."""
         return np.asarray(gizmo.position, dtype=np.float64)[:2]
 
-    def drawable(self, result, solver, target) -> tuple[scene.SolveView, np.ndarray]:
-        """A solve's view and its trail (S+1, K*N, 2, 3)."""
+    def drawable(self, result, solver, target, partial=None) -> tuple[scene.SolveView, np.ndarray]:
+        """A solve's view and its trail (S+1, K*N, 2, 3); `partial` is for pose models (a planar target is a point)."""
         view = scene.build_view(result, solver.lengths, target)
         return view, scene.trail_points(view.joints)
 
@@ -76,9 +76,10 @@ class ChainKind:
         pose = np.concatenate((np.asarray(gizmo.position, np.float64), np.asarray(gizmo.wxyz, np.float64)))
         return pose[: solver.arm.target_dim]
 
-    def drawable(self, result, solver, target) -> tuple[chain_scene.ChainView, np.ndarray]:
-        """A solve's view and its trail: the K hands' paths, (S+1, K, 2, 3)."""
-        view = chain_scene.build_chain_view(result, solver.arm, target)
+    def drawable(self, result, solver, target, partial=None) -> tuple[chain_scene.ChainView, np.ndarray]:
+        """A solve's view and its trail: the K hands' paths, (S+1, K, 2, 3). `partial`: the solve's partial
+        target (ikdp.PositionOnly or FreeAxis), whose residual the errors then measure; None: the full pose."""
+        view = chain_scene.build_chain_view(result, solver.arm, target, partial=partial)
         return view, chain_scene.hand_paths(view.points)
 
     def model_text(self, solver) -> str:

@@ -20,8 +20,23 @@ def pose_text(target: np.ndarray) -> str:
     return text + f"  \nwxyz = ({w:.3f}, {qx:+.3f}, {qy:+.3f}, {qz:+.3f})"
 
 
-def error_pair(position_m: float, rotation_rad: float) -> str:
-    return f"{1000 * position_m:.1f} mm / {np.degrees(rotation_rad):.2f}°"
+def error_pair(position_m: float, rotation_rad: float, measure: str = "rotation") -> str:
+    """A hand error in mm and degrees; `measure` (ChainView.rotation_measure) says what the degrees are: the
+    rotation, a free axis's angle ("z axis"), or nothing ("none": position only)."""
+    position = f"{1000 * position_m:.1f} mm"
+    if measure == "none":
+        return position
+    angle = f"{np.degrees(rotation_rad):.2f}°"
+    return f"{position} / {angle}" if measure == "rotation" else f"{position} / {angle} ({measure})"
+
+
+def target_kind_text(measure: str) -> str | None:
+    """A line saying what a partial target asks for (ChainView.rotation_measure); None for a full pose."""
+    if measure == "rotation":
+        return None
+    if measure == "none":
+        return "**Position only**: any hand rotation counts; the errors are the hand's distance alone"
+    return f"**The hand's {measure} free**: any turn about it counts; the angle is that axis's miss"
 
 
 def best_note(view: ChainView, highlight: int) -> str:
@@ -42,19 +57,23 @@ def chain_solve_text(
     """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve."""
     last = view.num_states - 1
     best = best_note(view, highlight)
+    measure = view.rotation_measure
     lines = [
         f"**Step** {state} of {last} (t = {int(view.labels[state])})",
         f"**Hand error**, sample {highlight + 1} of {view.num_samples}{best}: "
-        f"{error_pair(view.position_error[state, highlight], view.rotation_error[state, highlight])} now, "
-        f"{error_pair(view.position_error[last, highlight], view.rotation_error[last, highlight])} at t = 0",
+        f"{error_pair(view.position_error[state, highlight], view.rotation_error[state, highlight], measure)} now, "
+        f"{error_pair(view.position_error[last, highlight], view.rotation_error[last, highlight], measure)} at t = 0",
         f"median of K = {view.num_samples} at t = 0: "
-        f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]))}",
+        f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]), measure)}",
     ]
     if view.refined:
         lines.append(
             f"refined ({refine_steps} DLS steps): "
-            f"{error_pair(view.final_position_error[highlight], view.final_rotation_error[highlight])}"
+            f"{error_pair(view.final_position_error[highlight], view.final_rotation_error[highlight], measure)}"
         )
+    kind = target_kind_text(measure)
+    if kind is not None:
+        lines.insert(1, kind)
     lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler}, {last} steps, seed {seed})")
     return "  \n".join(lines)
 

@@ -43,12 +43,14 @@ class ChainView:
     points: np.ndarray  # (S+1, K, J+1, 3) joint origins then the end effector, per state and sample
     position_error: np.ndarray  # (S+1, K) metres from each state's end effector to the target position
     rotation_error: np.ndarray  # (S+1, K) radians between each state's hand rotation and the target's
+    # (a free axis: between the axis as reached and as asked; position only: zeros, not measured)
     final_joint_values: np.ndarray  # (K, J) the poses the solver returned (refined when `refined`)
     final_points: np.ndarray  # (K, J+1, 3) their joint origins
     final_position_error: np.ndarray  # (K,) metres, of the returned poses
     final_rotation_error: np.ndarray  # (K,) radians, of the returned poses
     refined: bool  # the returned poses are the damped-least-squares polish of the last state
     estimate_points: np.ndarray | None = None  # (S, K, J+1, 3) the denoiser's x̂0 at the step into state s+1
+    rotation_measure: str = "rotation"  # what rotation_error measures: "rotation", "none" (position only), "z axis"
 
     @property
     def num_states(self) -> int:
@@ -148,8 +150,25 @@ def ghost_colors(num_states: int, num_samples: int, highlight: int | None) -> np
     return colors
 
 
-def build_chain_view(result: SolveResult, arm, target) -> ChainView:
-    """The drawable arrays of the first target of a chain `solver.solve(..., return_trajectory=True)` result."""
+def rotation_measure(partial) -> str:
+    """What a partial target's rotation error measures: "rotation" (None: the full pose), "none", "x axis"..."""
+    if partial is None:
+        return "rotation"
+    if partial.name == "position_only":
+        return "none"
+    axis = np.asarray(partial.axis, dtype=np.float64)
+    axis = axis / np.linalg.norm(axis)
+    for index, name in enumerate("xyz"):
+        if abs(axis[index]) > 1 - 1e-9:
+            return f"{name} axis"
+    return "axis ({:.2f}, {:.2f}, {:.2f})".format(*axis)
+
+
+def build_chain_view(result: SolveResult, arm, target, partial=None) -> ChainView:
+    """The drawable arrays of the first target of a chain `solver.solve(..., return_trajectory=True)` result.
+
+    `partial` (ikdp.PositionOnly or FreeAxis, the solve's partial target): the rotation errors measure its
+    residual, nothing for position only, the free axis's angle for a free axis."""
     if result.trajectory is None:
         raise ValueError("result: solve with return_trajectory=True, the viewer draws every state")
     target = np.asarray(target, dtype=np.float64).reshape(-1)
@@ -159,10 +178,15 @@ def build_chain_view(result: SolveResult, arm, target) -> ChainView:
     trajectory = result.trajectory[:, 0].detach().cpu().double()  # (S+1, K, J)
     final = result.angles[0].detach().cpu().double()  # (K, J)
 
+    measure = rotation_measure(partial)
+    bound = None if partial is None else partial.bind(arm, 1, 1)
+
     def rotation_error(joints: torch.Tensor) -> np.ndarray:
-        if arm.target_dim != 7:
+        if arm.target_dim != 7 or measure == "none":
             return np.zeros(joints.shape[:-1])
-        return arm.rotation_error(joints, goal.expand(*joints.shape[:-1], 7)).double().numpy()
+        goals = goal.expand(*joints.shape[:-1], 7)
+        error = arm.rotation_error(joints, goals) if bound is None else bound.rotation_error(joints, goals)
+        return error.double().numpy()
 
     estimates = None if result.estimates is None else result.estimates[:, 0].detach().cpu().double()
     return ChainView(
@@ -178,4 +202,5 @@ def build_chain_view(result: SolveResult, arm, target) -> ChainView:
         final_rotation_error=rotation_error(final),
         refined=not torch.equal(result.angles, result.raw_angles),
         estimate_points=None if estimates is None else arm.forward_kinematics(estimates).numpy(),
+        rotation_measure=measure,
     )

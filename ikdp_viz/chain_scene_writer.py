@@ -24,6 +24,7 @@ import viser
 import ikdp
 from ikdp_viz import chain_readouts
 from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.constraint_scene import sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.panel import Panel
@@ -216,10 +217,15 @@ class ChainSceneWriter(SceneWriter):
         # (S+1, K, 3) each: following one sample (the default), its skeleton blue and the others' light grey
         self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, highlight, self.trail_of)
         self._trail_colors = trail_colors(ramp, 1)  # (S+1, K, 2, 3): one hand step per sample
-        self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
         self._ghost_colors = ghost_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
         if follows_one(self.trail_of):
             self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
+        tints = self.constraint_tints()
+        if tints is not None:  # every robot and skeleton green where its constraints hold at that state, red where not
+            # in full colour: at the ghosts' opacity, and as thin lines sent as is (lighter on the page), the lighter
+            # tints of the planar arms read as grey; the highlighted robot is the opaque one
+            self._colors = self._ghost_colors = sample_tints(self.solved.state_violation, highlight, others_full=True)
+        self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
 
     def _write_refined(self) -> None:
         view = self.solved.view

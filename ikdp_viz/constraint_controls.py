@@ -1,10 +1,13 @@
-"""The viewer's Constraints folder: lock joints, drop and drag obstacles, stay near the last pose, follow.
+"""The viewer's Constraints folder: a partial target, lock joints, drop and drag obstacles, stay near, follow.
 
 Controls live in their own folder of the panel; the app reads `constraints()` into each
 solve request and hands each finished solve to `after_solve`. Scene nodes (the obstacles'
 gizmos and spheres, the coloured overlay) are created and written on the scene writer's
 thread, through its `Call` message, like every other node.
 
+- target (pose models only): the full pose, the position only (ikdp.PositionOnly: the gizmo's
+  rotation rings are hidden), or the hand free to turn about its x, y or z axis (ikdp.FreeAxis:
+  the axis drawn through the target, with a ring about it); the readouts then measure that;
 - lock: a checkbox and a value per joint (absolute headings on a planar arm);
 - add obstacle: a sphere (a disc on a planar arm) with a gizmo to drag it, between the base
   and the target; its radius is the panel's at the time it is dropped;
@@ -12,7 +15,8 @@ thread, through its `Call` message, like every other node.
 - follow: stay near, and keep (highlight) the sample nearest the last pose: dragging the target
   keeps the arm on one continuous solution; the readout gives the largest joint jump so far;
 - colour by constraint: the highlighted sample at every state of the reverse process, green
-  where the constraints hold and red where not (constraint_scene.py).
+  where the constraints hold and red where not (constraint_scene.py), and every sample on screen
+  by the same rule at the state shown (the scene writer's `constraint_tints`).
 """
 
 from __future__ import annotations
@@ -22,10 +26,21 @@ import threading
 import numpy as np
 import viser
 
-from ikdp_viz.constraint_scene import build_constraints, first_holding_state, follow_choice, holds, overlay_segments
+from ikdp_viz.constraint_scene import (
+    FREE_AXIS_COLOR,
+    TARGET_KINDS,
+    build_constraints,
+    first_holding_state,
+    follow_choice,
+    holds,
+    overlay_segments,
+)
+from ikdp_viz.scene import line_colors
 from ikdp_viz.scene_writer import Call
 
 OBSTACLE_COLOR = (200, 60, 60)
+FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
+FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
 
 
 class ConstraintControls:
@@ -41,6 +56,7 @@ class ConstraintControls:
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
         self.largest_jump = 0.0
         self.overlay = None
+        self.target_marks = None  # the free axis and its ring through the target (a child of the target's gizmo)
         self.build(solver)
 
     # ------------------------------------------------------------------ the folder
@@ -54,6 +70,13 @@ class ConstraintControls:
         limits = None if planar else arm.joint_limits.numpy()
         self.folder = gui.add_folder("Constraints", expand_by_default=False)
         with self.folder:
+            self.target_kind = None  # a planar arm's target is a point: nothing to leave free
+            if getattr(arm, "target_dim", 2) == 7:
+                self.target_kind = gui.add_dropdown(
+                    "target", tuple(TARGET_KINDS), initial_value="full pose",
+                    hint="What the hand must reach: the whole pose, its position only, or the pose up to a turn "
+                    "about one of the hand's axes",
+                )  # fmt: skip
             self.lock_boxes, self.lock_values = [], []
             for index, name in enumerate(names):
                 low, high = (-np.pi, np.pi) if limits is None else (float(limits[index, 0]), float(limits[index, 1]))
@@ -76,20 +99,35 @@ class ConstraintControls:
                 "follow (one continuous solution)", False, hint="Stay near, and keep the sample nearest the last pose"
             )
             self.color_states = gui.add_checkbox(
-                "colour poses by constraint", True, hint="The highlighted sample at every step: green holds, red not"
+                "colour poses by constraint",
+                True,
+                hint="Every sample at the step shown, and the highlighted one's past steps (faint): green where "
+                "the constraints hold, red where not",
             )
             self.readout = gui.add_markdown("No constraint.")
         self.add_button.on_click(lambda _: self.add_obstacle())
         self.clear_button.on_click(lambda _: self.clear_obstacles())
         for toggle in (self.stay_near, self.follow):
             toggle.on_update(lambda _: self._on_near())
-        self.color_states.on_update(lambda _: self.post(Call(lambda writer: self._draw_overlay(writer.solved))))
+        self.color_states.on_update(lambda _: self.post(Call(self._on_color_states)))
+        if self.target_kind is not None:
+            self.target_kind.on_update(lambda _: self._on_target_kind())
+
+    def _on_color_states(self, writer) -> None:
+        """Writer thread: the overlay and every sample's colours follow the checkbox."""
+        writer.set_constraint_colors(self.color_states.value)
+        self._draw_overlay(writer.solved)
+
+    def _on_target_kind(self) -> None:
+        kind = str(self.target_kind.value)
+        self.post(Call(lambda writer: self._draw_target_marks(writer, kind)))
+        self.on_change()
 
     def rebuild(self, solver) -> None:
         """Another model: a fresh folder for its joints, no obstacles, no last pose."""
         with self.model_lock:
             self.clear_obstacles(ask=False)
-            self.post(Call(lambda writer: self._remove_overlay()))
+            self.post(Call(lambda writer: (self._remove_overlay(), self._draw_target_marks(writer, "full pose"))))
             self.folder.remove()
             self.last_pose, self.largest_jump = None, 0.0
             self.build(solver)
@@ -112,7 +150,27 @@ class ConstraintControls:
         with self.lock:
             obstacles = [(entry["position"], entry["radius"]) for entry in self.obstacles]
         near = self.last_pose if (self.stay_near.value or self.follow.value) else None
-        return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar")
+        kind = "full pose" if self.target_kind is None else str(self.target_kind.value)
+        return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar", target_kind=kind)
+
+    # ------------------------------------------------------------------ what the target asks for, in the scene
+
+    def _draw_target_marks(self, writer, kind: str) -> None:
+        """Writer thread: position only hides the gizmo's rotation rings (its rotation asks nothing); a free axis
+        is drawn through the target, along the hand's axis, with a ring about it for the turn left free."""
+        if self.target_marks is not None:
+            self.target_marks.remove()
+            self.target_marks = None
+        if self.target_kind is None:
+            return
+        writer.gizmo.disable_rotations = kind == "position only"
+        axis = TARGET_KINDS.get(kind)
+        if kind == "full pose" or axis is None:
+            return
+        self.target_marks = self.server.scene.add_line_segments(
+            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.reach), FREE_AXIS_COLOR,
+            thickness=4.0, thickness_units="screen",
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ obstacles
 
@@ -191,6 +249,11 @@ class ConstraintControls:
 
     def _write_readout(self, solved, choice: int, jump: float | None) -> None:
         lines = []
+        measure = getattr(solved.view, "rotation_measure", "rotation")
+        if measure == "none":
+            lines.append("target: **position only**, any hand rotation")
+        elif measure != "rotation":
+            lines.append(f"target: the hand's **{measure} free**, any turn about it")
         if solved.state_violation is not None:
             met = int(holds(solved.state_violation[-1]).sum())
             first = first_holding_state(solved.state_violation[:, choice])
@@ -218,8 +281,20 @@ class ConstraintControls:
             choice = int(np.argmin(np.abs(solved.final_angles - self.last_pose).sum(axis=-1)))
         points = view.joints[:, choice] if hasattr(view, "joints") else view.points[:, choice]
         segments, colors = overlay_segments(points, solved.state_violation[:, choice])
-        if hasattr(view, "joints"):
-            segments[..., 2] += 0.01 * float(np.sum(view.lengths))  # above the planar arms
+        if hasattr(view, "joints"):  # above the grid, under the planar arms of the step shown (lifted higher)
+            segments[..., 2] += 0.001 * float(np.sum(view.lengths))
         self.overlay = self.server.scene.add_line_segments(
-            "/constraints/states", segments, colors, thickness=2.0, thickness_units="screen"
+            "/constraints/states", segments, line_colors(colors), thickness=2.0, thickness_units="screen"
         )
+
+
+def free_axis_segments(axis: np.ndarray, reach: float) -> np.ndarray:
+    """(M, 2, 3) in the target's frame: the line along `axis` (3,) through it, and a ring of 32 segments about it."""
+    axis = axis / np.linalg.norm(axis)
+    line = np.stack([-axis, axis])[None] * FREE_AXIS_LENGTH * reach  # (1, 2, 3)
+    across = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    across /= np.linalg.norm(across)
+    other = np.cross(axis, across)
+    angles = np.linspace(0.0, 2 * np.pi, 33)
+    ring = FREE_AXIS_RING * reach * (np.cos(angles)[:, None] * across + np.sin(angles)[:, None] * other)  # (33, 3)
+    return np.concatenate([line, np.stack([ring[:-1], ring[1:]], axis=1)]).astype(np.float32)

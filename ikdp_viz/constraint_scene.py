@@ -2,8 +2,10 @@
 
 No viser here. The overlay draws one sample's pose at every state of the reverse process,
 green where the constraints hold (to HOLDS_TOLERANCE) and red where they do not, so the user
-sees at which step the constraint takes hold. Follow mode keeps, of the K samples, the one
-nearest the previous pose, and reports the largest joint jump.
+sees at which step the constraint takes hold; `sample_tints` colours every sample at every
+state the same way, for the K poses on screen. Follow mode keeps, of the K samples, the one
+nearest the previous pose, and reports the largest joint jump. A pose model's target may be
+partial (TARGET_KINDS): the position only, or the hand free to turn about one of its axes.
 """
 
 from __future__ import annotations
@@ -19,12 +21,59 @@ HOLDS = (40, 170, 80)  # a state whose pose meets the constraints
 VIOLATES = (215, 50, 40)  # one that does not
 HOLDS_TOLERANCE = 0.01  # summed violation (radians of a locked joint, depth in the arm's unit) drawn as holding
 NEAR_WEIGHT = 0.6  # the pull toward the last pose (ikdp.tracking: 0.6 kept a Panda circle's jumps under 0.02 rad)
+# the samples not highlighted: the same two hues, lighter, so the highlighted one still stands out among K = 16
+HOLDS_OTHERS = (110, 200, 130)
+VIOLATES_OTHERS = (235, 120, 105)
+# the overlay of the kept sample's past states: fainter still, a history under the poses of the step shown
+HOLDS_FAINT = (190, 230, 197)
+VIOLATES_FAINT = (247, 195, 187)
+
+FREE_AXIS_COLOR = (235, 140, 0)  # the free axis through the target: amber, none of the gizmo's red, green, blue
+
+# What a pose model's target asks for: the panel's choices, each with the free axis (end-effector frame) or None
+TARGET_KINDS = {
+    "full pose": None,
+    "position only": None,
+    "free x axis": (1.0, 0.0, 0.0),
+    "free y axis": (0.0, 1.0, 0.0),
+    "free z axis": (0.0, 0.0, 1.0),
+}
+PARTIAL_NAMES = ("position_only", "free_axis")  # the ikdp constraints that make a target partial
+
+
+def target_constraint(kind: str):
+    """The panel's target kind as an ikdp constraint: None (full pose), PositionOnly or FreeAxis."""
+    if kind not in TARGET_KINDS:
+        raise ValueError(f"target kind: expected one of {tuple(TARGET_KINDS)}, got {kind!r}")
+    if kind == "full pose":
+        return None
+    axis = TARGET_KINDS[kind]
+    return ikdp.PositionOnly() if axis is None else ikdp.FreeAxis(axis=axis)
+
+
+def partial_target(constraints) -> object | None:
+    """The partial target among a solve's constraints (PositionOnly or FreeAxis), or None."""
+    return next((item for item in constraints if item.name in PARTIAL_NAMES), None)
+
+
+def checkable(constraints) -> bool:
+    """Whether any constraint can hold or fail on a pose: a partial target is measured by the errors instead."""
+    return any(item.name not in PARTIAL_NAMES for item in constraints)
 
 
 def build_constraints(
-    locks: dict[int, float], obstacles: list[tuple[np.ndarray, float]], near_pose: np.ndarray | None, *, planar: bool
+    locks: dict[int, float],
+    obstacles: list[tuple[np.ndarray, float]],
+    near_pose: np.ndarray | None,
+    *,
+    planar: bool,
+    target_kind: str = "full pose",
 ) -> tuple:
-    """The panel's settings as ikdp constraints: locked joints, obstacles (discs, planar), a pose to stay near."""
+    """The panel's settings as ikdp constraints: locked joints, obstacles (discs, planar), a pose to stay near,
+    a partial target (pose models)."""
+    partial = target_constraint(target_kind)
+    if partial is not None and planar:
+        raise ValueError(f"target kind: a planar arm's targets are points, got {target_kind!r}")
     constraints = []
     if locks:
         constraints.append(ikdp.LockedJoints({index: float(value) for index, value in locks.items()}))
@@ -34,6 +83,8 @@ def build_constraints(
         constraints.append(ikdp.Obstacles(centers, [float(radius) for _, radius in obstacles]))
     if near_pose is not None:
         constraints.append(ikdp.NearPose(np.asarray(near_pose, dtype=np.float64), weight=NEAR_WEIGHT))
+    if partial is not None:
+        constraints.append(partial)
     return tuple(constraints)
 
 
@@ -48,6 +99,25 @@ def holds(violation: np.ndarray) -> np.ndarray:
     return violation <= HOLDS_TOLERANCE
 
 
+def sample_tints(violation: np.ndarray, highlight: int, *, others_full: bool = False) -> np.ndarray:
+    """(S+1, K) every sample's violation at every state -> (S+1, K, 3) uint8: green where it holds, red where not;
+    the highlighted sample in full colour, the others lighter (`others_full`: in full colour too, for see-through
+    robots whose opacity lightens them already)."""
+    holding = holds(np.asarray(violation))[..., None]
+    if others_full:
+        return np.where(holding, np.array(HOLDS), np.array(VIOLATES)).astype(np.uint8)
+    colors = np.where(holding, np.array(HOLDS_OTHERS), np.array(VIOLATES_OTHERS))
+    colors[:, highlight] = np.where(holding[:, highlight], np.array(HOLDS), np.array(VIOLATES))
+    return colors.astype(np.uint8)
+
+
+def met_text(violation: np.ndarray, state: int, *, colored: bool) -> str:
+    """The readout line for the state shown: how many of the K samples meet the constraints there."""
+    met = int(holds(np.asarray(violation)[state]).sum())
+    text = f"**Constraints hold** for {met} of {violation.shape[1]} samples at this step"
+    return text + (" (green; red: not)" if colored else "")
+
+
 def first_holding_state(violation: np.ndarray) -> int | None:
     """(S+1,) one sample's violations -> the first state from which every later state holds; None if the last fails."""
     holding = holds(violation)
@@ -59,12 +129,12 @@ def first_holding_state(violation: np.ndarray) -> int | None:
 
 def overlay_segments(points: np.ndarray, violation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One sample's joint positions at every state (S+1, P, 2 or 3) and violations (S+1,) -> line segments
-    (S * (P-1)... , 2, 3) and their colours (same, uint8): green where the state holds, red where not."""
+    (S * (P-1)... , 2, 3) and their colours (same, uint8): faint green where the state holds, faint red where not."""
     points = np.asarray(points, dtype=np.float32)
     if points.shape[-1] == 2:
         points = np.concatenate([points, np.zeros((*points.shape[:-1], 1), np.float32)], axis=-1)
     segments = np.stack([points[:, :-1], points[:, 1:]], axis=-2)  # (S+1, P-1, 2, 3)
-    colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS), np.array(VIOLATES))
+    colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS_FAINT), np.array(VIOLATES_FAINT))
     colors = np.broadcast_to(colors, segments.shape).astype(np.uint8)
     return segments.reshape(-1, 2, 3), colors.reshape(-1, 2, 3)
 

@@ -27,6 +27,15 @@ import ikdp
 from ikdp_viz import meshes, readouts
 from ikdp_viz.clock import CLOCK_CHOICES, clock_note, noise_levels, state_offsets
 from ikdp_viz.compare import CompareNodes, compare_curve
+from ikdp_viz.constraint_scene import (
+    FREE_AXIS_COLOR,
+    HOLDS,
+    HOLDS_OTHERS,
+    VIOLATES,
+    VIOLATES_OTHERS,
+    met_text,
+    sample_tints,
+)
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 from ikdp_viz.legend import Entry, Swatch, legend_html
@@ -212,6 +221,7 @@ class SceneWriter:
         self._colors: np.ndarray | None = None  # (S+1, K, 3) per-sample colour of each state
         self._trail_colors: np.ndarray | None = None  # (S+1, K*N, 2, 3)
         self._dot_colors: np.ndarray | None = None  # (S+1, K, 3) the joint-space dots, as "all samples" colours arms
+        self.color_by_constraint = True  # the Constraints folder's "colour poses by constraint" (constraint_controls)
         self.trail = self.links = self.joints = self.tips = None
         self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self._static_nodes: list = []
@@ -336,6 +346,7 @@ class SceneWriter:
             self.prior_lines = None
         self._recolor()
         self._ensure_arm_nodes()
+        self._write_legend()  # the constraints' green and red come and go with the solve's constraints
         self._write_clock_note()
         self.write_target_inputs(solved.request.target)
         decades = readouts.error_range(solved.view.tip_error * self.CHART_SCALE)
@@ -442,7 +453,38 @@ class SceneWriter:
         ]
 
     def _write_legend(self) -> None:
-        self.panel.learn.legend.content = legend_html(self.legend_entries())
+        self.panel.learn.legend.content = legend_html(self.legend_entries() + self.constraint_legend_entries())
+
+    # -------------------------------------------------------------- colouring by constraint
+
+    def constraint_tints(self) -> np.ndarray | None:
+        """(S+1, K, 3) every sample's colour at every state by whether its constraints hold (constraint_scene),
+        or None: not asked for, or the solve on screen has no constraint that can hold or fail."""
+        solved = self.solved
+        if not self.color_by_constraint or solved is None or solved.state_violation is None:
+            return None
+        return sample_tints(solved.state_violation, self.highlight_index())
+
+    def constraint_legend_entries(self) -> list[Entry]:
+        """The Constraints folder's colours in the scene now: green and red, the free axis."""
+        entries = []
+        if self.constraint_tints() is not None:
+            entries += [
+                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), "constraints hold at the step shown (the others lighter)"),
+                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), "constraints fail at the step shown"),
+            ]
+        measure = getattr(self.solved.view, "rotation_measure", "rotation") if self.solved is not None else "rotation"
+        if measure not in ("rotation", "none"):
+            entries.append(Entry(Swatch(FREE_AXIS_COLOR), f"the hand's free {measure}: any turn about it counts"))
+        return entries
+
+    def set_constraint_colors(self, on: bool) -> None:
+        """Colour the samples by constraint, or not; redraws the state on screen."""
+        self.color_by_constraint = bool(on)
+        self._write_legend()
+        if self.solved is not None:
+            self._recolor()
+            self._draw_state(self.state)
 
     def _write_clock_note(self) -> None:
         """Say on screen where the animation's time goes (the clock's spacing)."""
@@ -510,6 +552,9 @@ class SceneWriter:
     def _recolor(self) -> None:
         view = self.solved.view
         self._colors, ramp = emphasis_colors(view.num_states, view.num_samples, self.highlight_index(), self.trail_of)
+        tints = self.constraint_tints()
+        if tints is not None:  # every arm green where its constraints hold at that state, red where not
+            self._colors = tints
         self._trail_colors = trail_colors(ramp, view.num_links)
         # the joint-space dots: every sample as dark as in "all samples", or light grey dots vanish on the square
         self._dot_colors = sample_colors(view.num_states, view.num_samples, self.highlight_index())
@@ -660,7 +705,10 @@ class SceneWriter:
             failed = f"**Solve failed** {self.error}" if self.error else "Waiting for the first solve..."
             self.panel.readout_text.content = failed
             return
-        self.panel.readout_text.content = self._solve_text(solved)
+        text = self._solve_text(solved)
+        if solved.state_violation is not None:
+            text += "  \n" + met_text(solved.state_violation, self.state, colored=self.constraint_tints() is not None)
+        self.panel.readout_text.content = text
 
     def _solve_text(self, solved) -> str:
         """The readouts of the solve on screen at the state shown (markdown)."""

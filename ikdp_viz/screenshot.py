@@ -65,6 +65,8 @@ class ScreenshotConfig:
     compare: str = "off"  # "compare with": off, ddim, dpmpp2m, ddpm
     saved_page: Path | None = None  # instead: open this saved HTML page (a shared denoising) from disk, no server
     wait: float = 6.0  # seconds a saved page plays before the picture
+    target_kind: str = "full pose"  # Constraints folder, pose models: "position only", "free x axis", ... (open)
+    obstacle: tuple[float, float, float, float] | None = None  # Constraints: drop one at x y z radius (open)
 
 
 def screenshot_saved_page(page_path: Path, output: Path, *, chromium: str, size: tuple[int, int], wait: float) -> None:
@@ -127,6 +129,14 @@ def main(argv: list[str] | None = None) -> None:
     if args.refine_steps:
         app.panel.refine_steps.value = args.refine_steps
         app.panel.refine.value = True
+    constraints = app.constraint_controls
+    constrained = args.target_kind != "full pose" or args.obstacle is not None
+    if args.target_kind != "full pose":
+        if constraints.target_kind is None:
+            raise ValueError(f"target_kind: {args.target_kind!r} needs a pose model, {args.ckpt} is not one")
+        constraints.target_kind.value = args.target_kind
+    if args.obstacle is not None:
+        constraints.add_obstacle(position=args.obstacle[:3], radius=args.obstacle[3])
     app.move_target(app.target)  # args.target pulled into the workspace, or the arm's first target
     app.wait_until_still(60)
     if args.timestep is not None:
@@ -140,6 +150,8 @@ def main(argv: list[str] | None = None) -> None:
             with contextlib.suppress(Exception):  # the software-rendering notice covers a corner of the scene
                 page.locator(".mantine-Notification-closeButton").first.click(timeout=5_000)
             page.get_by_text("Sampling", exact=True).click()  # fold it, so the readouts and the plot show
+            if constrained:  # open the Constraints folder (at the panel's foot, under the readouts)
+                page.get_by_text("Constraints", exact=True).click()
             time.sleep(5.0)  # software WebGL: let a few frames render
             args.output.parent.mkdir(parents=True, exist_ok=True)
             page.screenshot(path=str(args.output))

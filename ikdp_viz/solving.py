@@ -17,7 +17,7 @@ import torch
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import ChainView
-from ikdp_viz.constraint_scene import state_violation
+from ikdp_viz.constraint_scene import checkable, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 
@@ -49,7 +49,8 @@ class Solved:
     compare: SolveView | None = None  # the same noise through request.compare_sampler (planar arms)
     compare_trail: np.ndarray | None = None  # its trail points, as trail_points
     final_angles: np.ndarray | None = None  # (K, J) the returned joint values (refined when asked)
-    state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation, with constraints
+    state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation (checkable ones: not
+    # a partial target alone)
 
 
 def stop_when(cancel: threading.Event):
@@ -86,7 +87,8 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
     if result.stopped:
         raise Cancelled
     solve_seconds = time.perf_counter() - started
-    view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target)
+    partial = partial_target(request.constraints)  # the errors measure what the target asks (position only, ...)
+    view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
     compare = compare_trail = None
     if request.compare_sampler is not None and arm_kind(solver).name == "planar":
         other = solver.solve(
@@ -98,5 +100,6 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         if other.stopped:
             raise Cancelled
         compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
-    violation = state_violation(request.solver, request.constraints, result) if request.constraints else None
+    checked = checkable(request.constraints)  # a partial target alone has nothing to hold or fail: its errors say
+    violation = state_violation(request.solver, request.constraints, result) if checked else None
     return Solved(request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation)

@@ -1,4 +1,5 @@
-"""The Constraints folder in a real browser: a joint locked by a click, an obstacle, follow mode; no page error.
+"""The Constraints folder in a real browser: a joint locked by a click, an obstacle, follow mode, every sample
+coloured and counted; a pose model's partial target picked in the page; no page error.
 
 Every page error and every console message of type "error" is collected; none may appear.
 """
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 from viz_helpers import (
     BROWSER_TIMEOUT,
+    NO_FADE_CSS,
     canvas_changed_share,
     open_page_collecting_errors,
     read_png,
@@ -57,9 +59,39 @@ def test_locking_a_joint_and_dropping_an_obstacle_in_the_page(browser):
         app.move_target((1.4, 1.1))
         settle(app)
         assert wait_for(lambda: "largest so far" in controls.readout.content)
+        # the samples on screen are counted at the step shown, in the page's readouts
+        page.get_by_text("Constraints hold", exact=True).first.wait_for(timeout=BROWSER_TIMEOUT * 1000)
         time.sleep(SETTLE_IN_PAGE)
         after = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         assert not errors, f"{errors[:3]} ({len(errors)} in all)"
         # the page drew the obstacle and the coloured states
         assert canvas_changed_share(page, before, after) > 0.005
+        page.close()
+
+
+def test_picking_a_partial_target_in_the_page(browser, tiny_chain_checkpoint):
+    with running_app(ikdp.load(tiny_chain_checkpoint), animation_seconds=0.0) as app:
+        app.panel.samples.value = 4
+        settle(app)
+        controls = app.constraint_controls
+        page, errors = open_page_collecting_errors(browser, app, height=1600)
+        page.add_style_tag(content=NO_FADE_CSS)
+        page.get_by_text("Constraints", exact=True).click()
+        time.sleep(SETTLE_IN_PAGE)
+        before = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
+        page.get_by_label("target", exact=True).click()
+        page.get_by_role("option", name="free z axis", exact=True).click()
+        assert wait_for(lambda: controls.target_kind.value == "free z axis")
+        settle(app)
+        assert wait_for(lambda: [c.name for c in app.solved.request.constraints] == ["free_axis"])
+        page.get_by_text("The hand's z axis free", exact=True).first.wait_for(timeout=BROWSER_TIMEOUT * 1000)
+        time.sleep(SETTLE_IN_PAGE)
+        after = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
+        assert canvas_changed_share(page, before, after) > 0.002  # the free axis and its ring are drawn
+        page.get_by_label("target", exact=True).click()
+        page.get_by_role("option", name="position only", exact=True).click()
+        assert wait_for(lambda: app.writer.gizmo.disable_rotations)  # its rotation rings are hidden
+        settle(app)
+        page.get_by_text("Position only", exact=True).first.wait_for(timeout=BROWSER_TIMEOUT * 1000)
+        assert not errors, f"{errors[:3]} ({len(errors)} in all)"
         page.close()

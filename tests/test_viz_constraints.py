@@ -1,13 +1,29 @@
-"""The viewer's Constraints folder: locks, obstacles, staying near, follow mode, the coloured overlay."""
+"""The viewer's Constraints folder: locks, obstacles, staying near, follow mode, the coloured overlay, partial
+targets of a pose model, every sample coloured by constraint."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from viz_helpers import drag_gizmo, running_app, settle
 
 import ikdp
-from ikdp_viz.constraint_scene import HOLDS, VIOLATES, first_holding_state, follow_choice, overlay_segments
+from ikdp.rotations import quaternion_to_matrix
+from ikdp_viz.constraint_scene import (
+    HOLDS,
+    HOLDS_FAINT,
+    HOLDS_OTHERS,
+    VIOLATES,
+    VIOLATES_FAINT,
+    VIOLATES_OTHERS,
+    build_constraints,
+    first_holding_state,
+    follow_choice,
+    holds,
+    overlay_segments,
+    sample_tints,
+)
 
 K = 8
 
@@ -17,9 +33,18 @@ def test_the_overlay_colours_each_state_by_whether_it_holds():
     points[:, :, 0] = np.arange(4)
     segments, colors = overlay_segments(points, np.array([0.5, 0.02, 0.0]))
     assert segments.shape == (9, 2, 3) and colors.shape == (9, 2, 3)
-    assert (colors[:3] == VIOLATES).all() and (colors[3:6] == VIOLATES).all() and (colors[6:] == HOLDS).all()
+    assert (colors[:6] == VIOLATES_FAINT).all() and (colors[6:] == HOLDS_FAINT).all()
     assert first_holding_state(np.array([0.5, 0.0, 0.2, 0.0, 0.0])) == 3
     assert first_holding_state(np.array([0.0, 0.0, 0.3])) is None
+
+
+def test_every_sample_is_tinted_by_its_own_violation_the_highlighted_one_in_full():
+    violation = np.array([[0.5, 0.0, 0.3], [0.0, 0.2, 0.0]])  # 2 states of K = 3
+    tints = sample_tints(violation, highlight=2)
+    assert tints.shape == (2, 3, 3) and tints.dtype == np.uint8
+    assert (tints[0, 0] == VIOLATES_OTHERS).all() and (tints[0, 1] == HOLDS_OTHERS).all()
+    assert (tints[1, 0] == HOLDS_OTHERS).all() and (tints[1, 1] == VIOLATES_OTHERS).all()
+    assert (tints[0, 2] == VIOLATES).all() and (tints[1, 2] == HOLDS).all()
 
 
 def test_follow_keeps_the_nearest_sample_that_reaches():
@@ -48,6 +73,33 @@ def test_a_locked_joint_holds_in_every_returned_pose_and_is_reported(app):
     assert app.solved.state_violation.shape == (len(app.solved.view.labels), K)
     assert "holds from state" in controls.readout.content
     assert controls.overlay is not None  # the coloured states are drawn
+
+
+def test_every_sample_on_screen_is_coloured_by_constraint_and_counted(app):
+    controls = app.constraint_controls
+    controls.add_obstacle(position=(0.9, 0.6, 0.0), radius=0.5)
+    settle(app)
+    violation = app.solved.state_violation  # (S+1, K)
+    writer = app.writer
+    for state in (0, len(violation) // 2, len(violation) - 1):
+        app.show_state(state)
+        met = holds(violation[state])
+        assert f"hold** for {int(met.sum())} of {K} samples at this step" in app.panel.readout_text.content
+        expected = np.where(met[:, None], np.array(HOLDS_OTHERS), np.array(VIOLATES_OTHERS))
+        others = np.arange(K) != app.highlight_index()
+        assert np.array_equal(writer._colors[state][others], expected[others])  # each arm's own colour
+    assert "constraints hold at the step shown" in app.panel.learn.legend.content
+    controls.color_states.value = False  # back to the grey samples and the blue highlighted one
+    settle(app)
+    assert not np.isin(writer._colors[-1], [HOLDS_OTHERS, VIOLATES_OTHERS]).all(axis=-1).any()
+    assert "(green" not in app.panel.readout_text.content and controls.overlay is None
+    assert "constraints hold" not in app.panel.learn.legend.content
+
+
+def test_a_planar_model_offers_no_partial_target(app):
+    assert app.constraint_controls.target_kind is None
+    with pytest.raises(ValueError, match="target kind"):
+        build_constraints({}, [], None, planar=True, target_kind="position only")
 
 
 def test_an_obstacle_dropped_and_dragged_bends_the_solve(app):
@@ -95,3 +147,46 @@ def test_a_robot_gets_the_same_folder_with_its_joint_names_and_spheres(tiny_chai
         assert controls.overlay is not None
         with pytest.raises(ValueError, match="outside its limits"):  # the number field's bounds aside
             ikdp.LockedJoints({"panda_joint4": 0.5}).bind(app.solver.arm, 1, 1)
+
+
+def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_checkpoint):
+    with running_app(ikdp.load(tiny_chain_checkpoint), solve_now=False, animation_seconds=0.0) as app:
+        app.panel.samples.value = 4
+        settle(app)
+        controls, writer = app.constraint_controls, app.writer
+        assert controls.target_kind.value == "full pose" and not writer.gizmo.disable_rotations
+        controls.target_kind.value = "position only"
+        settle(app)
+        assert [c.name for c in app.solved.request.constraints] == ["position_only"]
+        assert writer.gizmo.disable_rotations  # the gizmo's rotation asks nothing: its rings are hidden
+        view = app.solved.view
+        assert view.rotation_measure == "none" and not view.rotation_error.any()
+        assert "Position only" in app.panel.readout_text.content and "°" not in app.panel.readout_text.content
+        assert app.solved.state_violation is None  # nothing to hold or fail: the errors say how well it went
+        controls.target_kind.value = "free z axis"
+        settle(app)
+        free = app.solved.request.constraints[0]
+        assert free.name == "free_axis" and tuple(free.axis) == (0.0, 0.0, 1.0)
+        assert not writer.gizmo.disable_rotations and controls.target_marks is not None  # the axis is drawn
+        assert controls.target_marks.name == "/target/free_axis"  # a child of the gizmo: it turns with it
+        segments = controls.target_marks.points
+        assert np.allclose(np.cross(segments[0, 1] - segments[0, 0], [0, 0, 1]), 0)  # along the hand's z
+        view = app.solved.view
+        target = app.solved.request.target
+        arm = app.solver.arm
+        rotation, _ = arm.end_effector_frame(torch.as_tensor(view.final_joint_values))
+        reached = rotation.numpy()[:, :, 2]  # the hands' z axes
+        asked = quaternion_to_matrix(torch.as_tensor(target[3:]))[:, 2].numpy()
+        angles = np.arccos(np.clip(reached @ asked, -1, 1))
+        assert np.allclose(view.final_rotation_error, angles, atol=1e-4)  # the axis's angle, not the rotation's
+        assert "(z axis)" in app.panel.readout_text.content
+        assert "free z axis: any turn about it counts" in app.panel.learn.legend.content
+        controls.lock_boxes[6].value = True  # the other constraints keep working beside it
+        controls.follow.value = True
+        settle(app)
+        names = sorted(c.name for c in app.solved.request.constraints)
+        assert names == ["free_axis", "locked_joints", "near_pose"]
+        assert np.all(app.solved.final_angles[:, 6] == np.float32(controls.lock_values[6].value))
+        controls.target_kind.value = "full pose"
+        settle(app)
+        assert controls.target_marks is None and app.solved.view.rotation_measure == "rotation"
