@@ -62,6 +62,7 @@ class ConstraintBenchmarkConfig:
     refine_steps: int = 5  # DLS steps after sampling
     sampler: str = "dpmpp2m:10"  # name[:steps] of IKDP's sampler
     planar_sampler: str = "dpmpp2m:10"
+    obstacle_extra_samplers: tuple[str, ...] = ("ddpm",)  # more guided IKDP rows in the obstacle part
     random_start_steps: tuple[int, ...] = (5, 10, 20)  # constrained DLS steps from 16 uniform random starts
     certified_placement: bool = True  # obstacles: only sphere pairs that leave a certified free solution
     pk_retries: int = 16
@@ -241,11 +242,16 @@ def obstacles_part(solver, config: ConstraintBenchmarkConfig) -> dict:
         rows[label] = row(valid, seconds)
         solved[label] = valid.any(dim=1)
 
-    label = f"IKDP {config.sampler}, K={config.samples}, guided + {config.refine_steps} constrained DLS steps"
-    seconds, out = timed(
-        lambda: solver.solve(targets, constraints=[obstacle], generator=torch.Generator().manual_seed(1), **options)
-    )
-    record(label, seconds, out.angles)
+    for text in (config.sampler, *config.obstacle_extra_samplers):
+        name, steps = parse_sampler(text)
+        guided = {**options, "sampler": name, "steps": steps}
+        label = f"IKDP {text}, K={config.samples}, guided + {config.refine_steps} constrained DLS steps"
+        seconds, out = timed(
+            lambda guided=guided: solver.solve(
+                targets, constraints=[obstacle], generator=torch.Generator().manual_seed(1), **guided
+            )
+        )
+        record(label, seconds, out.angles)
     label = f"IKDP {config.sampler}, K={config.samples}, unguided + {config.refine_steps} DLS steps, filtered"
     seconds, out = timed(lambda: solver.solve(targets, generator=torch.Generator().manual_seed(1), **options))
     record(label, seconds, out.angles)
