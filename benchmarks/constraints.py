@@ -161,6 +161,7 @@ def place_spheres(arm, truth: torch.Tensor, generator: torch.Generator, certifie
     """
     truth = truth.clone()
     centers, radii = torch.zeros(len(truth), 2, 3), torch.zeros(len(truth), 2)
+    witnesses = torch.full_like(truth, torch.nan)  # the certifying solution of each target (NaN: uncertified)
     first_draw_feasible, redrawn, pending = None, 0, torch.arange(len(truth))
     while len(pending):
         targets = arm.end_effector(truth[pending])
@@ -172,12 +173,14 @@ def place_spheres(arm, truth: torch.Tensor, generator: torch.Generator, certifie
             usable = usable[: len(usable) // 2 * 2].view(-1, 2)
             pairs[row_index, : len(usable)] = usable
         feasible = torch.zeros(len(pending), PLACEMENT_DRAWS, dtype=torch.bool)
+        witness = torch.zeros(len(pending), PLACEMENT_DRAWS, dtype=torch.long)  # its index in the pool
         for draw in range(PLACEMENT_DRAWS):
             index = pairs[:, draw].clamp_min(0)
             draw_centers = candidates.gather(1, index[..., None].expand(-1, -1, 3))
             draw_radii = sizes.gather(1, index)
             free = ~collides(arm, pool, draw_centers, draw_radii, WITNESS_CLEARANCE) & ~pool.isnan().any(dim=-1)
             feasible[:, draw] = free.any(dim=-1) & (pairs[:, draw, 0] >= 0)
+            witness[:, draw] = free.double().argmax(dim=-1)
         if first_draw_feasible is None:
             first_draw_feasible = float(feasible[:, 0].double().mean())
         if not certified:
@@ -187,6 +190,8 @@ def place_spheres(arm, truth: torch.Tensor, generator: torch.Generator, certifie
         for row_index in found.nonzero()[:, 0].tolist():
             pair = pairs[row_index, chosen[row_index]]
             centers[pending[row_index]], radii[pending[row_index]] = candidates[row_index, pair], sizes[row_index, pair]
+            if certified:
+                witnesses[pending[row_index]] = pool[row_index, witness[row_index, chosen[row_index]]]
         pending = pending[~found]
         redrawn += len(pending)
         truth[pending] = arm.random_poses(len(pending), generator=generator)
@@ -194,6 +199,7 @@ def place_spheres(arm, truth: torch.Tensor, generator: torch.Generator, certifie
         "truth": truth,
         "centers": centers,
         "radii": radii,
+        "witnesses": witnesses,
         "first_draw_feasible_share": first_draw_feasible,
         "targets_redrawn": redrawn,
     }

@@ -35,3 +35,22 @@ def test_the_robot_benchmark_names_its_results_after_the_checkpoint():
 
     assert default_output("/any/checkpoints/ikdp_panda.pt").name == "robot_panda.json"  # the Panda's file, as before
     assert default_output("runs/my_arm.pt") == REPO / "benchmarks" / "results" / "robot_my_arm.json"
+
+
+def test_the_obstacle_benchmark_blocks_each_valid_solution_and_certifies_another_one_free():
+    import torch
+
+    import ikdp
+    from benchmarks.constraints import WITNESS_CLEARANCE, place_spheres, within_pose_tolerance
+    from ikdp.guidance import ConstraintSet
+
+    arm = ikdp.load_robot("panda")
+    generator = torch.Generator().manual_seed(0)
+    placement = place_spheres(arm, arm.random_poses(6, generator=generator), generator)
+    truth, witnesses = placement["truth"], placement["witnesses"]
+    targets = arm.end_effector(truth)
+    blocking = ConstraintSet(arm, [ikdp.Obstacles(placement["centers"], placement["radii"])], 6, 1)
+    assert bool((blocking.violation(truth[:, None]) > 0).all())  # the easy solution is blocked
+    assert bool(within_pose_tolerance(arm, witnesses[:, None], targets).all())  # another one reaches the target
+    grown = ikdp.Obstacles(placement["centers"], placement["radii"] + WITNESS_CLEARANCE - 1e-6)
+    assert bool((ConstraintSet(arm, [grown], 6, 1).violation(witnesses[:, None]) == 0).all())  # and is 1 cm clear
