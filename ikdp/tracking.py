@@ -3,8 +3,11 @@
 Each target is solved with a pull toward the previous solution (`NearPose`: every step's x̂0
 is moved part of the way to it), so the K samples gather on the branch the arm is already
 on; of those that reach the target (and meet the other constraints), the one nearest the
-previous pose is kept. The previous solution refined toward the target is one more candidate
-(`warm_start`).
+previous pose is kept. Nearest is by the Euclidean joint distance, as the pseudo-inverse's
+minimum-norm step: by the largest joint change alone, the other joints are free to drift along a
+redundant arm's self-motion, and on one Panda circle the path drifted into a stretch near a
+singularity that needed a 0.115 rad jump (0.043 by the Euclidean distance: docs/CONSTRAINTS.md).
+The previous solution refined toward the target is one more candidate (`warm_start`).
 
 A path may leave the arm's reach (at a fixed orientation, part of a circle often does) and come
 back. Two rules keep the arm sound across such a stretch:
@@ -144,7 +147,9 @@ def track(
                 rotation_error = torch.cat([rotation_error, warm_rotation])
             met = torch.cat([met, meets(stretched)])
         ok = within_tolerance(position_error, rotation_error) & met  # (candidates,)
-        distance = joint_difference(arm, angles, previous).abs().amax(dim=-1)  # (candidates,)
+        # nearest by the Euclidean joint distance, as the pseudo-inverse's minimum-norm step: by the largest
+        # joint change alone, the other joints drift freely along a redundant arm's self-motion
+        distance = joint_difference(arm, angles, previous).norm(dim=-1)  # (candidates,)
         if ok.any():
             score = torch.where(ok, distance, math.inf)  # the nearest reaching candidate ...
             if not previous_reached and full_targets and look_ahead and int(ok.sum()) > 1:
