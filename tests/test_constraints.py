@@ -266,6 +266,33 @@ def test_tracking_holds_its_branch_out_of_reach_and_reaches_every_target_after_i
     assert float(nearest.joint_jumps[distance > 4].max()) > 0.05  # without the hold the arm snaps straight
 
 
+def test_tracking_back_in_reach_takes_the_branch_that_stays_on_the_path():
+    """ikdp_n2 (two unit bones): out along the x axis elbow-down, beyond the reach, round to 60 degrees, back in.
+
+    Held still out of reach (a tiny hold_step), the arm's nearest branch back in reach is elbow-down
+    again, whose elbow then meets a disc; elbow-up stays clear."""
+    solver = ikdp.load("ikdp_n2")
+    polar = lambda distance, heading: torch.stack([distance * heading.cos(), distance * heading.sin()], -1)  # noqa: E731
+    path = torch.cat([
+        polar(torch.linspace(1.2, 1.9, 15), torch.zeros(15)),
+        polar(torch.full((20,), 2.2), torch.linspace(0, math.pi / 3, 20)),  # out of reach
+        polar(torch.linspace(1.98, 1.0, 20), torch.full((20,), math.pi / 3)),
+    ])  # fmt: skip
+    elbow = math.acos(0.6)  # the elbow-down solution of the first target, (1.2, 0)
+    disc = ikdp.Obstacles(centers=[[0.966, 0.259]], radii=[0.1])  # on elbow-down's elbow, 15 degrees up, on the way in
+    options = dict(hold_step=1e-3, constraints=[disc], num_samples=8, sampler="ddim", steps=5, refine_steps=10)
+    back = slice(35, None)
+    nearest_lost_it = False
+    for seed in (0, 1):
+        ahead = solver.track(path, torch.tensor([-elbow, elbow]), generator=seeded(seed), **options)
+        assert not bool(ahead.reached[15:35].any())
+        assert bool(ahead.reached[back].all())  # every target back in reach
+        assert float(ahead.joint_jumps[36:].max()) < 0.2  # after the first one, no branch switch
+        nearest = solver.track(path, torch.tensor([-elbow, elbow]), look_ahead=0, generator=seeded(seed), **options)
+        nearest_lost_it |= not bool(nearest.reached[back].all())
+    assert nearest_lost_it  # the nearest branch back in reach meets the disc
+
+
 def test_tracking_within_reach_is_the_same_with_or_without_the_out_of_reach_rules(tiny_checkpoint):
     solver = ikdp.load(tiny_checkpoint)
     angles = torch.linspace(0, math.pi / 2, 12)
