@@ -15,9 +15,11 @@ back. Two rules keep the arm sound across such a stretch:
   the target (the previous pose refined toward it, each joint moved at most `hold_step`), rather
   than taking whichever sample lies nearest, which may sit on another branch;
 - `look_ahead`: where the targets come back into reach, the reaching candidates are on different
-  branches, and the nearest may be one that loses the path again a few targets on; each is
-  followed over the next `look_ahead` targets by warm-started refinement, and the one that keeps
-  reaching the longest is kept (the nearest among equals).
+  branches, and the nearest may be one that loses the path again a few targets on. The target is
+  then also solved without the pull (the pull gathers the samples on the branch the arm held, the
+  one that lost the path), each reaching candidate is followed over the next `look_ahead` targets
+  by warm-started refinement, and the one that keeps reaching the longest is kept (the nearest
+  among equals).
 """
 
 from __future__ import annotations
@@ -76,7 +78,8 @@ def track(
     keeps the candidate nearest the previous pose. `look_ahead` (targets, 0 for none): on coming
     back into reach, the reaching candidate that warm-started refinement keeps on the path for the
     most of the next `look_ahead` targets in a row is kept, not merely the nearest one. Neither acts
-    while every target is reached: a path within reach is tracked exactly as without them. On a
+    while every target is reached (a path within reach is tracked exactly as without them), nor
+    with a partial target (PositionOnly, FreeAxis), whose refinement aims elsewhere. On a
     Panda circle 53.5 % reachable (docs/CONSTRAINTS.md), with neither rule `track` reached 36.0 %
     (back in reach, the nearest candidate lost the path again 7 targets on) with 42 jumps over
     0.1 rad; the look-ahead alone reached 46.0 %; the hold alone, and both, every reachable target
@@ -138,6 +141,15 @@ def track(
         angles, position_error = out.angles[0], out.position_error[0]  # (K, J), (K,)
         rotation_error = None if out.rotation_error is None else out.rotation_error[0]
         met = out.constraints_met[0] if out.constraints_met is not None else torch.ones(len(angles), dtype=torch.bool)
+        coming_back = not previous_reached and full_targets and look_ahead > 0
+        if coming_back:  # the pull gathers the samples on the branch that lost the path: add samples from every branch
+            free = solver.solve(target[None], constraints=list(constraints), **solve_options)
+            angles = torch.cat([angles, free.angles[0]])
+            position_error = torch.cat([position_error, free.position_error[0]])
+            if rotation_error is not None:
+                rotation_error = torch.cat([rotation_error, free.rotation_error[0]])
+            free_met = free.constraints_met[0] if free.constraints_met is not None else None
+            met = torch.cat([met, torch.ones(len(free.angles[0]), dtype=torch.bool) if free_met is None else free_met])
         stretched = None  # (1, J) the previous pose refined toward the target
         if full_targets and (warm_start or hold_step is not None):
             stretched = refined(previous[None], target)
@@ -154,7 +166,7 @@ def track(
         distance = joint_difference(arm, angles, previous).norm(dim=-1)  # (candidates,)
         if ok.any():
             score = torch.where(ok, distance, math.inf)  # the nearest reaching candidate ...
-            if not previous_reached and full_targets and look_ahead and int(ok.sum()) > 1:
+            if coming_back and int(ok.sum()) > 1:
                 run = torch.full((len(angles),), -1, dtype=torch.long)  # ... or, back in reach, the one that stays
                 run[ok] = run_ahead(angles[ok], index)
                 score = torch.where(run == run.max(), score, math.inf)
@@ -163,13 +175,15 @@ def track(
             pick = int(torch.where(met, distance, distance + 1e6).argmin())  # the nearest meeting the constraints
         chosen, chosen_position, chosen_reached = angles[pick], position_error[pick], bool(ok[pick])
         chosen_rotation = None if rotation_error is None else rotation_error[pick]
-        if not ok.any() and hold_step is not None and stretched is not None and bool(meets(stretched)):
+        if not ok.any() and hold_step is not None and stretched is not None:
             # hold the branch: toward the stretched pose, each joint at most hold_step (between two in-limit poses)
             step = joint_difference(arm, stretched[0], previous).clamp(-hold_step, hold_step)
-            chosen = arm.normalize_joints(previous + step)
-            held_position, held_rotation = errors(chosen[None], target)
-            chosen_position, chosen_rotation = held_position[0], None if held_rotation is None else held_rotation[0]
-            chosen_reached = bool(within_tolerance(held_position, held_rotation)[0])
+            held = arm.normalize_joints(previous + step)
+            if bool(meets(held[None])[0]):
+                held_position, held_rotation = errors(held[None], target)
+                chosen, chosen_position = held, held_position[0]
+                chosen_rotation = None if held_rotation is None else held_rotation[0]
+                chosen_reached = bool(within_tolerance(held_position, held_rotation)[0])
         solutions.append(chosen)
         position_errors.append(chosen_position)
         if chosen_rotation is not None:

@@ -286,6 +286,7 @@ def test_tracking_back_in_reach_takes_the_branch_that_stays_on_the_path():
     for seed in (0, 1):
         ahead = solver.track(path, torch.tensor([-elbow, elbow]), generator=seeded(seed), **options)
         assert not bool(ahead.reached[15:35].any())
+        assert float(ahead.joint_jumps[15:35].max()) <= 1e-3 + 1e-6  # held still, elbow-down, clear of the disc
         assert bool(ahead.reached[back].all())  # every target back in reach
         assert float(ahead.joint_jumps[36:].max()) < 0.2  # after the first one, no branch switch
         nearest = solver.track(path, torch.tensor([-elbow, elbow]), look_ahead=0, generator=seeded(seed), **options)
