@@ -13,9 +13,11 @@ One run, one torch thread, every method on the same targets in the same run:
    PseudoInverseIK (16 retries, 30 iterations) with the same collision filter (the link spheres of
    ikdp/link_spheres.py). "Solved by any method" bounds how many targets the spheres leave open.
 2. Panda, joints 1 and 7 locked at the valid solution's values: share solved, locked joints moved.
-3. Panda, tracking: circles of `track_radius` in a horizontal plane, `track_points` targets at a
-   fixed orientation, from a start pose on the circle: largest joint jump between consecutive
-   solutions and share solved; beside pytorch_kinematics warm-started from the previous solution.
+3. Panda, tracking (benchmarks/constraint_tracking.py): circles of `track_radius` in a horizontal
+   plane, `track_points` targets at a fixed orientation, each certified reachable all the way round
+   by PseudoInverseIK from many random starts (plus one partly unreachable stress circle): largest
+   joint jump between consecutive solutions and share solved; beside pytorch_kinematics warm-started
+   from the previous solution.
 4. Panda, partial targets (position only; the hand's z axis free): share within 1 mm (and 1 degree
    of the axis), beside random starts refined on the same partial residual.
 5. Planar N=4 (ikdp_n4) with one disc over a valid solution's middle bones, clear of the base and
@@ -36,13 +38,13 @@ import torch
 import tyro
 
 import ikdp
+from benchmarks.constraint_tracking import print_tracking, tracking_part
 from ikdp.evaluation.machine import machine_description
 from ikdp.guidance import ConstraintSet
 from ikdp.link_spheres import link_spheres
 from ikdp.refine import damped_least_squares
 
 RESULTS = Path(__file__).resolve().parent / "results" / "constraints.json"
-READY_POSE = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)  # Franka's "ready" configuration
 PLACEMENT_ATTEMPTS = 100  # disc placements tried on one planar pose before the pose is drawn again
 PINNED_LINKS = ("panda_link0", "panda_link1", "panda_link6", "panda_link7", "panda_hand")  # fixed by the target
 WITNESS_STARTS = 64  # random starts per target of the independent solve that certifies a free solution exists
@@ -67,7 +69,7 @@ class ConstraintBenchmarkConfig:
     certified_placement: bool = True  # obstacles: only sphere pairs that leave a certified free solution
     pk_retries: int = 16
     pk_iterations: int = 30
-    track_circles: int = 3  # circles tracked: the ready pose first, then random starts
+    track_circles: int = 5  # circles certified reachable all the way round: the ready pose, then random starts
     track_points: int = 200  # targets per circle
     track_radius: float = 0.1  # metres
     track_weight: float = 0.6  # NearPose's pull while tracking
@@ -369,85 +371,6 @@ def partial_part(solver, config: ConstraintBenchmarkConfig) -> dict:
     return parts
 
 
-def circle_path(arm, start: torch.Tensor, points: int, radius: float) -> torch.Tensor:
-    """A horizontal circle through the start pose's hand, at its orientation, (points, 7)."""
-    pose = arm.end_effector(start)
-    angles = torch.linspace(0, 2 * math.pi, points + 1)[:-1]
-    center = pose[:3] - torch.tensor([radius, 0.0, 0.0])
-    circle = center + radius * torch.stack([angles.cos(), angles.sin(), torch.zeros(points)], dim=-1)
-    return torch.cat([circle, pose[3:].expand(points, 4)], dim=-1)
-
-
-def track_with_pseudo_inverse(arm, path: torch.Tensor, start: torch.Tensor, iterations: int) -> dict:
-    """Warm-started PseudoInverseIK: each target from the previous solution, one start."""
-    previous, jumps, reached, seconds = start, [], [], 0.0
-    for target in path:
-        spent, joints = run_pseudo_inverse(arm, target[None], previous[None], iterations)
-        seconds += spent
-        chosen = joints[0, 0]
-        reached.append(bool(within_pose_tolerance(arm, chosen[None, None], target[None])[0, 0]))
-        jumps.append(float((chosen - previous).abs().max()))
-        previous = chosen
-    return {"reached": reached, "jumps": jumps, "seconds": seconds}
-
-
-def tracking_part(solver, config: ConstraintBenchmarkConfig) -> dict:
-    arm = solver.arm
-    name, steps = parse_sampler(config.sampler)
-    generator = torch.Generator().manual_seed(config.seed + 2)
-    starts = [torch.tensor(READY_POSE)]
-    while len(starts) < config.track_circles:  # random starts away from the limits, so a circle is likely feasible
-        limits = arm.joint_limits
-        unit = 0.2 + 0.6 * torch.rand(arm.num_joints, generator=generator)
-        starts.append(limits[:, 0] + unit * (limits[:, 1] - limits[:, 0]))
-    circles = []
-    for index, start in enumerate(starts):
-        path = circle_path(arm, start, config.track_points, config.track_radius)
-        methods = {}
-        variants = (
-            (
-                f"IKDP track, near-pose weight {config.track_weight}, + warm-started candidate",
-                config.track_weight,
-                True,
-            ),
-            (f"IKDP track, near-pose weight {config.track_weight}, samples only", config.track_weight, False),
-            ("IKDP, no near-pose pull (nearest valid sample kept)", 0.0, False),
-        )
-        for label, weight, warm in variants:
-            seconds, result = timed(
-                lambda weight=weight, warm=warm, path=path, start=start, index=index: solver.track(
-                    path,
-                    start,
-                    weight=weight,
-                    warm_start=warm,
-                    num_samples=config.samples,
-                    sampler=name,
-                    steps=steps,
-                    refine_steps=config.refine_steps,
-                    generator=torch.Generator().manual_seed(index),
-                )
-            )
-            methods[label] = {
-                "solved_share": float(result.reached.double().mean()),
-                "largest_jump_rad": result.largest_jump,
-                "jumps_over_0.1_rad": int((result.joint_jumps > 0.1).sum()),
-                "ms_per_target": 1000 * seconds / len(path),
-            }
-        try:
-            tracked = track_with_pseudo_inverse(arm, path, start, config.pk_iterations)
-            jumps = torch.tensor(tracked["jumps"])
-            methods[f"pytorch_kinematics PseudoInverseIK, warm-started, {config.pk_iterations} iterations"] = {
-                "solved_share": sum(tracked["reached"]) / len(path),
-                "largest_jump_rad": float(jumps.max()),
-                "jumps_over_0.1_rad": int((jumps > 0.1).sum()),
-                "ms_per_target": 1000 * tracked["seconds"] / len(path),
-            }
-        except ImportError:
-            pass
-        circles.append({"start_pose": start.tolist(), "methods": methods})
-    return {"points_per_circle": config.track_points, "radius_m": config.track_radius, "circles": circles}
-
-
 def planar_part(config: ConstraintBenchmarkConfig) -> dict:
     solver = ikdp.load(config.planar_checkpoint)
     arm = solver.arm
@@ -552,15 +475,7 @@ def main(config: ConstraintBenchmarkConfig) -> dict:
         print_rows("Panda, joints 1 and 7 locked", results["locked"])
     if "tracking" in config.parts:
         results["tracking"] = tracking_part(solver, config)
-        print(f"\nPanda, tracking circles of {config.track_radius} m, {config.track_points} targets each")
-        print("| circle | method | solved | largest jump (rad) | jumps > 0.1 rad | ms per target |")
-        print("|---|---|---|---|---|---|")
-        for index, circle in enumerate(results["tracking"]["circles"]):
-            for label, values in circle["methods"].items():
-                print(
-                    f"| {index} | {label} | {100 * values['solved_share']:.1f} % | {values['largest_jump_rad']:.3f} "
-                    f"| {values['jumps_over_0.1_rad']} | {values['ms_per_target']:.1f} |"
-                )
+        print_tracking(results["tracking"])
     if "partial" in config.parts:
         results["partial"] = partial_part(solver, config)
         for kind, part in results["partial"].items():

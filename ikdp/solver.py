@@ -191,7 +191,9 @@ class Solver:
         """One continuous solution per target of a path (P, target_dim), starting from `start_pose` (J,).
 
         Each target is solved with a pull toward the previous solution and the nearest sample that
-        reaches it is kept (ikdp/tracking.py); `options`: weight, tolerances, constraints and solve's.
+        reaches it is kept; out of reach the arm holds its branch, stretched toward the target
+        (ikdp/tracking.py). `options`: weight, tolerances, constraints, warm_start, hold_step,
+        look_ahead and solve's.
         """
         return track(self, path, start_pose, **options)
 

@@ -262,6 +262,78 @@ def test_tracking_follows_a_path_on_one_continuous_solution(tiny_checkpoint):
     assert float(result.position_error.max()) < 1e-3 * solver.arm.span
 
 
+def circle_partly_out_of_reach(points: int) -> torch.Tensor:
+    """ikdp_n4 (unit bones, reach 4): a circle of radius 1 around (3.5, 0), its far third beyond the reach."""
+    angles = math.pi + torch.linspace(0, 2 * math.pi, points + 1)[:-1]  # from (2.5, 0), well inside
+    return torch.stack([3.5 + angles.cos(), angles.sin()], dim=-1)
+
+
+def test_tracking_holds_its_branch_out_of_reach_and_reaches_every_target_after_it():
+    solver = ikdp.load("ikdp_n4")
+    path = circle_partly_out_of_reach(90)
+    distance = path.norm(dim=-1)
+    start = damped_least_squares(solver.arm, torch.tensor([[0.3, -0.4, 0.2, 0.1]]), path[:1], steps=30)[0]
+    options = dict(num_samples=8, sampler="ddim", steps=5, refine_steps=10, generator=seeded())
+    held = solver.track(path, start, hold_step=0.02, **options)
+    assert 0.2 < float((distance > 4).double().mean()) < 0.5  # the path does leave the reach, and comes back
+    assert not bool(held.reached[distance > 4].any())
+    assert bool(held.reached[distance < 3.9].all())  # every target well within reach, after the stretch as before
+    assert float(held.joint_jumps[distance > 4].max()) <= 0.02 + 1e-6  # out of reach: stretched, hold_step a target
+    assert held.largest_jump < 0.25  # 0.07 of arc per target: no branch switch on the way back
+    nearest = solver.track(path, start, hold_step=None, look_ahead=0, **options)
+    assert float(nearest.joint_jumps[distance > 4].max()) > 0.05  # without the hold the arm snaps straight
+
+
+def test_tracking_back_in_reach_takes_the_branch_that_stays_on_the_path():
+    """ikdp_n2 (two unit bones): out along the x axis elbow-down, beyond the reach, round to 60 degrees, back in.
+
+    Held still out of reach (a tiny hold_step), the arm's nearest branch back in reach is elbow-down
+    again, whose elbow then meets a disc; elbow-up stays clear."""
+    solver = ikdp.load("ikdp_n2")
+    polar = lambda distance, heading: torch.stack([distance * heading.cos(), distance * heading.sin()], -1)  # noqa: E731
+    path = torch.cat([
+        polar(torch.linspace(1.2, 1.9, 15), torch.zeros(15)),
+        polar(torch.full((20,), 2.2), torch.linspace(0, math.pi / 3, 20)),  # out of reach
+        polar(torch.linspace(1.98, 1.0, 20), torch.full((20,), math.pi / 3)),
+    ])  # fmt: skip
+    elbow = math.acos(0.6)  # the elbow-down solution of the first target, (1.2, 0)
+    disc = ikdp.Obstacles(centers=[[0.966, 0.259]], radii=[0.1])  # on elbow-down's elbow, 15 degrees up, on the way in
+    options = dict(hold_step=1e-3, constraints=[disc], num_samples=8, sampler="ddim", steps=5, refine_steps=10)
+    back = slice(35, None)
+    nearest_lost_it = False
+    for seed in (0, 1):
+        ahead = solver.track(path, torch.tensor([-elbow, elbow]), generator=seeded(seed), **options)
+        assert not bool(ahead.reached[15:35].any())
+        assert float(ahead.joint_jumps[15:35].max()) <= 1e-3 + 1e-6  # held still, elbow-down, clear of the disc
+        assert bool(ahead.reached[back].all())  # every target back in reach
+        assert float(ahead.joint_jumps[36:].max()) < 0.2  # after the first one, no branch switch
+        nearest = solver.track(path, torch.tensor([-elbow, elbow]), look_ahead=0, generator=seeded(seed), **options)
+        nearest_lost_it |= not bool(nearest.reached[back].all())
+    assert nearest_lost_it  # the nearest branch back in reach meets the disc
+
+
+def test_tracking_within_reach_is_the_same_with_or_without_the_out_of_reach_rules(tiny_checkpoint):
+    solver = ikdp.load(tiny_checkpoint)
+    angles = torch.linspace(0, math.pi / 2, 12)
+    path = torch.stack([1.8 * angles.cos(), 1.8 * angles.sin()], dim=-1)
+    start = damped_least_squares(solver.arm, torch.tensor([[0.3, -0.4, 0.2]]), path[:1], steps=30)[0]
+    options = dict(num_samples=8, sampler="ddim", steps=5, refine_steps=10)
+    default = solver.track(path, start, generator=seeded(), **options)
+    plain = solver.track(path, start, hold_step=None, look_ahead=0, generator=seeded(), **options)
+    assert bool(default.reached.all())
+    assert torch.equal(default.angles, plain.angles)
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [({"hold_step": 0.0}, "hold_step: expected a positive"), ({"look_ahead": -1}, "look_ahead: expected a number")],
+)
+def test_tracking_rejects_a_bad_out_of_reach_option(tiny_checkpoint, option, message):
+    solver = ikdp.load(tiny_checkpoint)
+    with pytest.raises(ValueError, match=message):
+        solver.track([[1.0, 1.0]], [0.0, 0.0, 0.0], **option)
+
+
 def test_obstacles_work_after_a_plain_solve_built_the_arms_constants_in_inference_mode(tiny_chain_checkpoint):
     solver = ikdp.load(tiny_chain_checkpoint)  # a fresh arm: nothing cached yet
     target = [[0.4, 0.1, 0.5, 0.0, 1.0, 0.0, 0.0]]
