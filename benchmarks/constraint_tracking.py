@@ -17,14 +17,13 @@ tracker does across the unreachable stretch, not the target of the issue.
 
 from __future__ import annotations
 
-import functools
 import math
 import os
-import time
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import torch
+
+from benchmarks.constraint_common import run_pseudo_inverse, timed, within_pose_tolerance
 
 if TYPE_CHECKING:
     from benchmarks.constraints import ConstraintBenchmarkConfig
@@ -37,50 +36,12 @@ MAX_DRAWS = 100  # random circles drawn at most before the benchmark gives up fi
 JUMP_BOUND = 0.1  # radians: the issue's largest allowed joint jump between consecutive solutions
 
 
-def timed(run):
-    started = time.perf_counter()
-    result = run()
-    return time.perf_counter() - started, result
-
-
-@functools.cache
-def pk_chain(arm):
-    import pytorch_kinematics as pk
-
-    return pk, pk.build_serial_chain_from_urdf(Path(arm.urdf_path).read_bytes(), arm.ee_link)
-
-
-def pseudo_inverse(arm, targets: torch.Tensor, starts: torch.Tensor, iterations: int) -> tuple[float, torch.Tensor]:
-    """PseudoInverseIK from `starts` (R, J) for every pose target (B, 7) -> seconds, (B, R, J)."""
-    pk, chain = pk_chain(arm)
-    solver = pk.PseudoInverseIK(
-        chain,
-        retry_configs=starts,
-        joint_limits=arm.joint_limits,
-        max_iterations=iterations,
-        pos_tolerance=1e-3,
-        rot_tolerance=math.radians(1),
-        early_stopping_any_converged=True,
-    )
-    goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:])
-    seconds, solution = timed(lambda: solver.solve(goal))
-    return seconds, solution.solutions.detach().float()
-
-
-def within_pose_tolerance(arm, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """joints (B, R, J) -> (B, R) within 1 mm and 1 degree of the pose targets (B, 7) and within the limits."""
-    goals = targets[:, None].expand(-1, joints.shape[1], -1)
-    limits = arm.joint_limits
-    inside = ((joints >= limits[:, 0]) & (joints <= limits[:, 1])).all(dim=-1)
-    return inside & (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
-
-
 def reachable_targets(arm, path: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
     """path (P, 7) -> (P,) True where PseudoInverseIK from CERTIFY_STARTS random starts reaches the target."""
     for _ in range(CERTIFY_ATTEMPTS):
         starts = arm.random_poses(CERTIFY_STARTS, generator=generator)
         try:
-            _, joints = pseudo_inverse(arm, path, starts, CERTIFY_ITERATIONS)
+            _, joints = run_pseudo_inverse(arm, path, starts, CERTIFY_ITERATIONS)
         except torch.linalg.LinAlgError:  # a start at a singular pose: draw the starts again
             continue
         return within_pose_tolerance(arm, joints, path).any(dim=1)
@@ -130,7 +91,7 @@ def track_with_pseudo_inverse(arm, path: torch.Tensor, start: torch.Tensor, iter
     """Warm-started PseudoInverseIK: each target from the previous solution, one start."""
     previous, jumps, reached, seconds = start, [], [], 0.0
     for target in path:
-        spent, joints = pseudo_inverse(arm, target[None], previous[None], iterations)
+        spent, joints = run_pseudo_inverse(arm, target[None], previous[None], iterations)
         seconds += spent
         chosen = joints[0, 0]
         reached.append(bool(within_pose_tolerance(arm, chosen[None, None], target[None])[0, 0]))

@@ -1,6 +1,6 @@
 """Constraints at sampling time, measured (issue 20): obstacles, locked joints, tracking, a planar disc.
 
-    OMP_NUM_THREADS=1 python benchmarks/constraints.py --targets 1000
+    OMP_NUM_THREADS=1 python -m benchmarks.constraints --targets 1000
 
 One run, one torch thread, every method on the same targets in the same run:
 1. Panda, obstacles: held-out pose targets (FK of joint values uniform within the limits),
@@ -27,7 +27,6 @@ Prints tables and writes benchmarks/results/constraints.json.
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 import time
@@ -38,6 +37,7 @@ import torch
 import tyro
 
 import ikdp
+from benchmarks.constraint_common import parse_sampler, row, run_pseudo_inverse, timed, within_pose_tolerance
 from benchmarks.constraint_tracking import print_tracking, tracking_part
 from ikdp.evaluation.machine import machine_description
 from ikdp.guidance import ConstraintSet
@@ -78,38 +78,11 @@ class ConstraintBenchmarkConfig:
     output: Path = field(default=RESULTS)
 
 
-def parse_sampler(text: str) -> tuple[str, int | None]:
-    name, _, steps = text.partition(":")
-    return name, int(steps) if steps else None
-
-
-def timed(run):
-    started = time.perf_counter()
-    result = run()
-    return time.perf_counter() - started, result
-
-
 def refined_random_starts(arm, goals: torch.Tensor, dls_steps: int, task) -> tuple[float, torch.Tensor]:
     """K uniform random starts per target (goals (B, K, C)), then `dls_steps` constrained DLS steps: timed."""
     starts = arm.random_poses(goals.shape[0] * goals.shape[1], generator=torch.Generator().manual_seed(3))
     starts = starts.unflatten(0, tuple(goals.shape[:2]))
     return timed(lambda: damped_least_squares(arm, starts, goals, steps=dls_steps, task=task))
-
-
-def within_pose_tolerance(arm, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """joints (B, K, J) -> (B, K) within 1 mm and 1 degree of the pose targets (B, 7)."""
-    goals = targets[:, None].expand(-1, joints.shape[1], -1)
-    return (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
-
-
-def row(valid: torch.Tensor, seconds: float, **extra) -> dict:
-    """valid (B, K) -> the measured row: share of targets solved, valid solutions per target, ms per target."""
-    return {
-        "success_share": float(valid.any(dim=1).double().mean()),
-        "valid_per_target": float(valid.sum(dim=1).double().mean()),
-        "ms_per_target": 1000 * seconds / len(valid),
-        **extra,
-    }
 
 
 def free_solution_pool(arm, targets: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
@@ -205,30 +178,6 @@ def place_spheres(arm, truth: torch.Tensor, generator: torch.Generator, certifie
         "first_draw_feasible_share": first_draw_feasible,
         "targets_redrawn": redrawn,
     }
-
-
-@functools.cache
-def pk_chain(arm):
-    import pytorch_kinematics as pk
-
-    return pk, pk.build_serial_chain_from_urdf(Path(arm.urdf_path).read_bytes(), arm.ee_link)
-
-
-def run_pseudo_inverse(arm, targets: torch.Tensor, starts: torch.Tensor, iterations: int) -> tuple[float, torch.Tensor]:
-    """PseudoInverseIK from `starts` (R, J) for every target, or (B, R, J) one set per target -> (B, R, J)."""
-    pk, chain = pk_chain(arm)
-    solver = pk.PseudoInverseIK(
-        chain,
-        retry_configs=starts.reshape(-1, arm.num_joints),
-        joint_limits=arm.joint_limits,
-        max_iterations=iterations,
-        pos_tolerance=1e-3,
-        rot_tolerance=math.radians(1),
-        early_stopping_any_converged=True,
-    )
-    goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:])
-    seconds, solution = timed(lambda: solver.solve(goal))
-    return seconds, solution.solutions.detach().float()
 
 
 def obstacles_part(solver, config: ConstraintBenchmarkConfig) -> dict:

@@ -12,7 +12,11 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-HELPERS = {"pk_chain", "constraint_tracking"}  # run or imported by another script, not a command of its own
+HELPERS = {
+    "pk_chain",
+    "constraint_tracking",
+    "constraint_common",
+}  # run or imported by another script, not a command of its own
 SCRIPTS = sorted(path.stem for path in (REPO / "benchmarks").glob("*.py") if path.stem not in HELPERS)
 
 
