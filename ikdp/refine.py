@@ -105,7 +105,8 @@ def null_space_step(
     first; the depths (..., P) still predicted after `step`, d + G step, are cleared by moving
     along the gradients' parts in the target's null space, G (I - J^T (J J^T + l^2 I)^-1 J). As
     one more row stacked under a 6-row pose target, a 7-joint arm's system was square: each step
-    solved both exactly, with joint moves that threw 40 % of the samples far off the pose.
+    solved both exactly, with joint moves that threw samples off the pose (after 5 steps 52 % of
+    the Panda's samples were within 1 mm and 1 degree, against 87 % without the row).
     """
     remaining = (depths + (gradients @ step[..., None])[..., 0]).clamp_min(0)  # (..., P) predicted depths
     pulled = (jacobian[..., None, :, :] @ gradients[..., None])[..., 0]  # (..., P, E): J g per depth
