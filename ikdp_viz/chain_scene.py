@@ -19,6 +19,7 @@ from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, fade_colors, state_labels
 
 GHOST_FAINT = (238, 238, 238)  # the robots' meshes at t = T
 GHOST_DARK = (120, 120, 120)  # and at t = 0
+METRES_PER_RADIAN = 0.1  # ranks returned poses: a degree of rotation error counts as 1.7 mm of position
 
 __all__ = [
     "ChainView",
@@ -69,9 +70,14 @@ class ChainView:
         """(S+1, K) metres: the planar view's name for the hand's position error, read by the shared plot."""
         return self.position_error
 
+    @property
+    def final_error(self) -> np.ndarray:
+        """(K,) how far each returned pose lands: position in metres plus rotation at 0.1 m per radian."""
+        return self.final_position_error + METRES_PER_RADIAN * self.final_rotation_error
+
     def best_sample(self) -> int:
-        """The sample whose returned pose lands closest: position in metres plus rotation at 0.1 m per radian."""
-        return int(np.argmin(self.final_position_error + 0.1 * self.final_rotation_error))
+        """The sample whose returned pose lands closest (`final_error`)."""
+        return int(np.argmin(self.final_error))
 
     def estimate_at(self, state: int) -> np.ndarray | None:
         """(K, J+1, 3) the denoiser's x̂0 when it made state `state`; None at t = T or when not recorded."""

@@ -233,7 +233,7 @@ class ConstraintControls:
 
     def _after_solve(self, solved, panel) -> None:
         view = solved.view
-        errors = np.asarray(getattr(view, "final_tip_error", getattr(view, "final_position_error", None)))
+        errors = view.final_error  # a robot's counts the rotation (or a free axis's angle): a turned hand is a miss
         following = bool(self.follow.value)
         choice, jump = follow_choice(
             self.solver.arm, solved.final_angles, self.last_pose if following else None, errors

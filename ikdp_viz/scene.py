@@ -123,9 +123,14 @@ class SolveView:
     def num_links(self) -> int:
         return self.joints.shape[2] - 1
 
+    @property
+    def final_error(self) -> np.ndarray:
+        """(K,) how far each returned pose lands: its tip error (the robot view adds the rotation)."""
+        return self.final_tip_error
+
     def best_sample(self) -> int:
         """The sample whose returned pose lands closest to the target."""
-        return int(np.argmin(self.final_tip_error))
+        return int(np.argmin(self.final_error))
 
 
 def build_view(result: SolveResult, lengths, target) -> SolveView:

@@ -56,6 +56,21 @@ def test_follow_keeps_the_nearest_sample_that_reaches():
     assert follow_choice(arm, finals, None, errors) == (0, 0.0)
 
 
+def test_follow_on_a_robot_counts_a_turned_hand_as_a_miss():
+    from types import SimpleNamespace
+
+    from ikdp_viz.chain_scene import ChainView
+
+    arm = ikdp.load_robot("panda")
+    finals = np.zeros((2, 7))
+    finals[1, 6] = 0.5  # the second sample is 0.5 rad from the first in joint 7 only
+    previous = finals[0] + 0.01  # the first is nearer the last pose
+    # both hands on the target's position; the first is turned 10 degrees off it
+    view = SimpleNamespace(final_position_error=np.array([1e-4, 1e-4]), final_rotation_error=np.radians([10.0, 0.05]))
+    assert follow_choice(arm, finals, previous, view.final_position_error)[0] == 0  # by position alone: the turned one
+    assert follow_choice(arm, finals, previous, ChainView.final_error.fget(view))[0] == 1
+
+
 @pytest.fixture
 def app(tiny_checkpoint):
     with running_app(ikdp.load(tiny_checkpoint), solve_now=False, animation_seconds=0.0) as app:
