@@ -50,6 +50,36 @@ class TrackResult:
         return float(self.joint_jumps.max())
 
 
+@dataclass
+class Candidates:
+    """The poses one target may keep, with what decides between them."""
+
+    angles: torch.Tensor  # (C, J)
+    position_error: torch.Tensor  # (C,)
+    rotation_error: torch.Tensor | None  # (C,) for pose targets
+    met: torch.Tensor  # (C,) True where every constraint holds
+
+    @classmethod
+    def of_solve(cls, out) -> Candidates:
+        """A one-target solve's K samples."""
+        met = out.constraints_met[0] if out.constraints_met is not None else None
+        return cls(
+            angles=out.angles[0],
+            position_error=out.position_error[0],
+            rotation_error=None if out.rotation_error is None else out.rotation_error[0],
+            met=torch.ones(len(out.angles[0]), dtype=torch.bool) if met is None else met,
+        )
+
+    def __add__(self, other: Candidates) -> Candidates:
+        rotation = None if self.rotation_error is None else torch.cat([self.rotation_error, other.rotation_error])
+        return Candidates(
+            angles=torch.cat([self.angles, other.angles]),
+            position_error=torch.cat([self.position_error, other.position_error]),
+            rotation_error=rotation,
+            met=torch.cat([self.met, other.met]),
+        )
+
+
 def track(
     solver,
     path,
@@ -139,44 +169,32 @@ def track(
     previous_reached = True
     for index, target in enumerate(path):
         near = NearPose(previous, weight=weight)
-        out = solver.solve(target[None], constraints=[near, *constraints], **solve_options)
-        angles, position_error = out.angles[0], out.position_error[0]  # (K, J), (K,)
-        rotation_error = None if out.rotation_error is None else out.rotation_error[0]
-        met = out.constraints_met[0] if out.constraints_met is not None else torch.ones(len(angles), dtype=torch.bool)
+        candidates = Candidates.of_solve(solver.solve(target[None], constraints=[near, *constraints], **solve_options))
         coming_back = not previous_reached and full_targets and look_ahead > 0
         if coming_back:  # the pull gathers the samples on the branch that lost the path: add samples from every branch
-            free = solver.solve(target[None], constraints=list(constraints), **solve_options)
-            angles = torch.cat([angles, free.angles[0]])
-            position_error = torch.cat([position_error, free.position_error[0]])
-            if rotation_error is not None:
-                rotation_error = torch.cat([rotation_error, free.rotation_error[0]])
-            free_met = free.constraints_met[0] if free.constraints_met is not None else None
-            met = torch.cat([met, torch.ones(len(free.angles[0]), dtype=torch.bool) if free_met is None else free_met])
+            unpulled = solver.solve(target[None], constraints=list(constraints), **solve_options)
+            candidates += Candidates.of_solve(unpulled)
         stretched = None  # (1, J) the previous pose refined toward the target
         if full_targets and (warm_start or hold_step is not None):
             stretched = refined(previous[None], target)
         if warm_start and stretched is not None:  # one more candidate
-            warm_position, warm_rotation = errors(stretched, target)
-            angles = torch.cat([angles, stretched])
-            position_error = torch.cat([position_error, warm_position])
-            if rotation_error is not None:
-                rotation_error = torch.cat([rotation_error, warm_rotation])
-            met = torch.cat([met, meets(stretched)])
-        ok = within_tolerance(position_error, rotation_error) & met  # (candidates,)
+            candidates += Candidates(stretched, *errors(stretched, target), meets(stretched))
+        ok = within_tolerance(candidates.position_error, candidates.rotation_error) & candidates.met
         # nearest by the Euclidean joint distance, as the pseudo-inverse's minimum-norm step: by the largest
         # joint change alone, the other joints drift freely along a redundant arm's self-motion
-        distance = joint_difference(arm, angles, previous).norm(dim=-1)  # (candidates,)
+        distance = joint_difference(arm, candidates.angles, previous).norm(dim=-1)  # (C,)
         if ok.any():
             score = torch.where(ok, distance, math.inf)  # the nearest reaching candidate ...
             if coming_back and int(ok.sum()) > 1:
-                run = torch.full((len(angles),), -1, dtype=torch.long)  # ... or, back in reach, the one that stays
-                run[ok] = run_ahead(angles[ok], index)
+                run = torch.full((len(ok),), -1, dtype=torch.long)  # ... or, back in reach, the one that stays
+                run[ok] = run_ahead(candidates.angles[ok], index)
                 score = torch.where(run == run.max(), score, math.inf)
             pick = int(score.argmin())
         else:
-            pick = int(torch.where(met, distance, distance + 1e6).argmin())  # the nearest meeting the constraints
-        chosen, chosen_position, chosen_reached = angles[pick], position_error[pick], bool(ok[pick])
-        chosen_rotation = None if rotation_error is None else rotation_error[pick]
+            pick = int(torch.where(candidates.met, distance, distance + 1e6).argmin())  # nearest meeting constraints
+        chosen, chosen_position = candidates.angles[pick], candidates.position_error[pick]
+        chosen_reached = bool(ok[pick])
+        chosen_rotation = None if candidates.rotation_error is None else candidates.rotation_error[pick]
         if not ok.any() and hold_step is not None and stretched is not None:
             # hold the branch: toward the stretched pose, each joint at most hold_step (between two in-limit poses)
             step = joint_difference(arm, stretched[0], previous).clamp(-hold_step, hold_step)
