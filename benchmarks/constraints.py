@@ -6,10 +6,12 @@ One run, one torch thread, every method on the same targets in the same run:
 1. Panda, obstacles: held-out pose targets (FK of joint values uniform within the limits),
    each with 2 spheres of radius 5-10 cm centred within 3 cm of the straight segments between
    the elbow joints of that valid solution (joints 3 to 6), so that solution is blocked; spheres
-   touching the links the target pins down (base, shoulder, wrist, hand) are drawn again.
+   touching the links the target pins down (base, shoulder, wrist, hand) are drawn again, and a
+   pair is kept only if an independent 64-start DLS search has a solution 1 cm clear of it (every
+   target feasible; `--no-certified-placement`: the first pair, feasible or not).
    Share of targets with a collision-free solution within 1 mm and 1 degree, valid solutions
-   per target and time per target: IKDP K=16 + refinement (guided, and unguided with the same
-   filter), 16 uniform random starts with the same constrained refinement, and pytorch_kinematics
+   per target and time per target: IKDP K=16 + refinement (guided with DPM-Solver++ and DDPM, and
+   unguided with the same filter), 16 uniform random starts with the same constrained refinement, and pytorch_kinematics
    PseudoInverseIK (16 retries, 30 iterations) with the same collision filter (the link spheres of
    ikdp/link_spheres.py). "Solved by any method" bounds how many targets the spheres leave open.
 2. Panda, joints 1 and 7 locked at the valid solution's values: share solved, locked joints moved.
