@@ -10,13 +10,20 @@ from __future__ import annotations
 import time
 
 import pytest
-from viz_helpers import BROWSER_TIMEOUT, NO_FADE_CSS, open_page_collecting_errors, read_png, running_app, settle
+from viz_helpers import (
+    BROWSER_TIMEOUT,
+    NO_FADE_CSS,
+    SETTLE_IN_PAGE,
+    open_page_collecting_errors,
+    read_png,
+    running_app,
+    settle,
+)
 
 import ikdp
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 BACKGROUND = 250  # viser's canvas is white; a drawn robot is darker than this
 
 

@@ -13,19 +13,18 @@ import pytest
 from viz_helpers import (
     BROWSER_TIMEOUT,
     NO_FADE_CSS,
+    SETTLE_IN_PAGE,
     canvas_changed_share,
     open_page_collecting_errors,
     read_png,
     running_app,
     settle,
+    shipped_solver_or_skip,
 )
 
 import ikdp
-from ikdp.shipped import list_shipped, shipped_checkpoint
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
-
-SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 
 
 def wait_for(condition) -> bool:
@@ -36,9 +35,7 @@ def wait_for(condition) -> bool:
 
 
 def test_locking_a_joint_and_dropping_an_obstacle_in_the_page(browser):
-    if "ikdp_n4" not in {path.stem for path in list_shipped()}:
-        pytest.skip("the shipped ikdp_n4 is not there")
-    solver = ikdp.load(shipped_checkpoint("ikdp_n4"))
+    solver = shipped_solver_or_skip("ikdp_n4")
     with running_app(solver, animation_seconds=0.5, target=(1.5, 1.0)) as app:
         settle(app)
         controls = app.constraint_controls

@@ -12,22 +12,25 @@ import time
 
 import numpy as np
 import pytest
-from viz_helpers import BROWSER_TIMEOUT, open_page_collecting_errors, running_app, settle
+from viz_helpers import (
+    BROWSER_TIMEOUT,
+    SETTLE_IN_PAGE,
+    open_page_collecting_errors,
+    running_app,
+    settle,
+    shipped_solver_or_skip,
+)
 
-import ikdp
-from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint
+from ikdp.shipped import DEFAULT_MODEL
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 ISSUE_TARGET = (-0.010, 1.200)
-SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw each solve (software WebGL is slow)
 
 
 @pytest.fixture(scope="module")
 def shipped_solver():
-    if DEFAULT_MODEL not in {path.stem for path in list_shipped()}:
-        pytest.skip(f"the shipped {DEFAULT_MODEL} is not there")
-    return ikdp.load(shipped_checkpoint(DEFAULT_MODEL))
+    return shipped_solver_or_skip(DEFAULT_MODEL)
 
 
 def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shipped_solver):

@@ -10,26 +10,21 @@ import time
 import pytest
 from viz_helpers import (
     BROWSER_TIMEOUT,
+    SETTLE_IN_PAGE,
     canvas_changed_share,
     open_page_collecting_errors,
     read_png,
     running_app,
     settle,
+    shipped_solver_or_skip,
 )
 
-import ikdp
-from ikdp.shipped import list_shipped, shipped_checkpoint
-
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
-
-SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw (software WebGL is slow)
 
 
 @pytest.mark.parametrize("name", ["ikdp_n2", "ikdp_n4"])
 def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, name):
-    if name not in {path.stem for path in list_shipped()}:
-        pytest.skip(f"the shipped {name} is not there")
-    solver = ikdp.load(shipped_checkpoint(name))
+    solver = shipped_solver_or_skip(name)
     with running_app(solver, animation_seconds=1.0, target=(1.2, 0.5)) as app:
         settle(app)
         page, errors = open_page_collecting_errors(browser, app)

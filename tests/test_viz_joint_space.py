@@ -11,10 +11,9 @@ import math
 import numpy as np
 import pytest
 import torch
-from viz_helpers import running_app, settle
+from viz_helpers import running_app, settle, shipped_solver_or_skip
 
 import ikdp
-from ikdp.shipped import list_shipped, shipped_checkpoint
 from ikdp_viz.joint_space import (
     FieldCache,
     clean_estimates,
@@ -40,9 +39,7 @@ TWO_LINK = "ikdp_n2"
 
 @pytest.fixture(scope="module")
 def two_link_solver():
-    if TWO_LINK not in {path.stem for path in list_shipped()}:
-        pytest.skip(f"the shipped {TWO_LINK} is not there")
-    return ikdp.load(shipped_checkpoint(TWO_LINK))
+    return shipped_solver_or_skip(TWO_LINK)
 
 
 def tips(lengths, headings) -> np.ndarray:

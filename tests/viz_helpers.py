@@ -20,6 +20,16 @@ from ikdp_viz.screenshot import CHROMIUM_ARGS, NO_FADE_CSS  # noqa: F401  (the b
 
 CHROMIUM = "/usr/bin/chromium"
 BROWSER_TIMEOUT = 60.0  # seconds, for anything the browser has to render
+SETTLE_IN_PAGE = 1.5  # seconds the page gets to draw a solve (software WebGL is slow)
+
+
+def shipped_solver_or_skip(name: str) -> ikdp.Solver:
+    """The shipped model `name`, loaded; the test is skipped where this checkout does not ship it."""
+    from ikdp.shipped import list_shipped, shipped_checkpoint
+
+    if name not in {path.stem for path in list_shipped()}:
+        pytest.skip(f"the shipped {name} is not there")
+    return ikdp.load(shipped_checkpoint(name))
 
 
 @contextlib.contextmanager
