@@ -25,6 +25,8 @@ from pathlib import Path
 
 from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint, shipped_dir
 
+SIGNAL_CHECK_SECONDS = 0.2  # how late Ctrl-C may be noticed at most
+
 
 @dataclass(frozen=True)
 class VizConfig:
@@ -185,8 +187,10 @@ def main(argv: list[str] | None = None) -> None:
             f"ikdp-viz: a slow page (no GPU)? http://{shown_host}:{port}/?fixedDpr=0.5 draws at half resolution",
             flush=True,
         )
+        # Short naps, not one long sleep: Ctrl-C can land on one of viser's or torch's threads, and Python
+        # then only raises KeyboardInterrupt here once this thread wakes (2 of 25 stops under load hung).
         while True:
-            time.sleep(3600)
+            time.sleep(SIGNAL_CHECK_SECONDS)
     except KeyboardInterrupt:
         pass
     finally:
