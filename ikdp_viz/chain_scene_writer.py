@@ -24,7 +24,7 @@ import viser
 import ikdp
 from ikdp_viz import chain_readouts
 from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors, gizmo_pose, mesh_poses, skeleton_segments
-from ikdp_viz.constraint_scene import sample_tints
+from ikdp_viz.constraint_scene import holds, sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, estimate_rows, follows_one, trail_rows
 from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.panel import Panel
@@ -45,8 +45,17 @@ from ikdp_viz.typed_target import roll_pitch_yaw_degrees
 HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
 # darkens a mesh and the Panda's links are near black in their own shadows
 GHOST_OPACITY = 0.15  # the samples not highlighted: seen through, so the highlighted robot stays readable
+# a see-through robot that breaks a constraint at the step shown: at 0.15 its red read as a pale pink beside the
+# greens, so the ones in collision are drawn denser (viser multiplies each robot's factor into the node's opacity)
+VIOLATING_GHOST_OPACITY = 0.45
 SKELETON_PIXELS = 2.5  # the current state's skeletons, over the thinner trail
 HAND_AXES = 0.08  # hand frame's axes, in reach radii
+
+
+def ghost_opacities(holding: np.ndarray) -> np.ndarray:
+    """(..., K) whether each see-through robot meets the constraints -> (..., K) float32 factors of the ghosts'
+    node opacity (VIOLATING_GHOST_OPACITY): the usual GHOST_OPACITY where it holds, the full node opacity where not."""
+    return np.where(holding, GHOST_OPACITY / VIOLATING_GHOST_OPACITY, 1.0).astype(np.float32)
 
 
 def grid_cell(reach: float) -> float:
@@ -67,6 +76,8 @@ class ChainSceneWriter(SceneWriter):
     # the readouts' unit; the rotation error is in the readouts, in degrees
     CHART_ERROR, CHART_UNIT = "hand position error", "mm"
     CHART_SCALE = 1000.0  # view.tip_error is in metres
+    HOLDS_TEXT = "constraints hold at the step shown"
+    VIOLATES_TEXT = "constraints fail at the step shown (those see-through robots denser)"
 
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.ghosts: list = []  # one batched mesh node per robot mesh, K instances
@@ -165,7 +176,8 @@ class ChainSceneWriter(SceneWriter):
                 np.zeros((num_samples, 3)),
                 batched_colors=np.zeros((num_samples, 3), np.uint8),
                 batched_scales=np.ones(num_samples),
-                opacity=GHOST_OPACITY,
+                batched_opacities=ghost_opacities(np.ones(num_samples, bool)),
+                opacity=VIOLATING_GHOST_OPACITY,
                 lod="off",
                 cast_shadow=False,
                 receive_shadow=False,
@@ -221,10 +233,12 @@ class ChainSceneWriter(SceneWriter):
         if follows_one(self.trail_of):
             self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
         tints = self.constraint_tints()
+        self._ghost_opacities = ghost_opacities(np.ones((view.num_states, view.num_samples), bool))
         if tints is not None:  # every robot and skeleton green where its constraints hold at that state, red where not
             # in full colour: at the ghosts' opacity, and as thin lines sent as is (lighter on the page), the lighter
             # tints of the planar arms read as grey; the highlighted robot is the opaque one
             self._colors = self._ghost_colors = sample_tints(self.solved.state_violation, highlight, others_full=True)
+            self._ghost_opacities = ghost_opacities(holds(self.solved.state_violation))
         self._skeleton_colors = trail_colors(self._colors, view.num_joints)  # (S+1, K*J, 2, 3)
 
     def _write_refined(self) -> None:
@@ -270,6 +284,7 @@ class ChainSceneWriter(SceneWriter):
                 node.batched_wxyzs = mesh_wxyzs[:, index]
                 node.batched_colors = colors
                 node.batched_scales = scales
+                node.batched_opacities = self._ghost_opacities[state]
             node.visible = ghosts_shown
         for index, node in enumerate(self.robot):
             node.position, node.wxyz = mesh_positions[highlight, index], mesh_wxyzs[highlight, index]

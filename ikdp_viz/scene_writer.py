@@ -196,6 +196,9 @@ class SceneWriter:
 
     CHART_ERROR, CHART_UNIT = "tip error", "bone lengths"  # what the chart's y axis shows, in what unit
     CHART_SCALE = 1.0  # view.tip_error times this is in that unit
+    # the legend's constraint colours: how the samples not highlighted show them
+    HOLDS_TEXT = "constraints hold at the step shown (the others lighter)"
+    VIOLATES_TEXT = "constraints fail at the step shown"
 
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.server, self.panel = server, panel
@@ -470,8 +473,8 @@ class SceneWriter:
         entries = []
         if self.constraint_tints() is not None:
             entries += [
-                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), "constraints hold at the step shown (the others lighter)"),
-                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), "constraints fail at the step shown"),
+                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.HOLDS_TEXT),
+                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), self.VIOLATES_TEXT),
             ]
         measure = getattr(self.solved.view, "rotation_measure", "rotation") if self.solved is not None else "rotation"
         if measure not in ("rotation", "none"):

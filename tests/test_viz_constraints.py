@@ -10,6 +10,7 @@ from viz_helpers import drag_gizmo, running_app, settle
 
 import ikdp
 from ikdp.rotations import quaternion_to_matrix
+from ikdp_viz.chain_scene_writer import GHOST_OPACITY, VIOLATING_GHOST_OPACITY
 from ikdp_viz.constraint_scene import (
     HOLDS,
     HOLDS_FAINT,
@@ -160,6 +161,17 @@ def test_a_robot_gets_the_same_folder_with_its_joint_names_and_spheres(tiny_chai
         assert names == ["locked_joints", "obstacles"]
         assert np.all(app.solved.final_angles[:, 6] == np.float32(1.0))
         assert controls.overlay is not None
+        # the see-through robots that break a constraint at the step shown are drawn denser than those that hold
+        writer = app.writer
+        violation = app.solved.state_violation
+        assert not holds(violation[0]).all()  # the noise at t = T: some robots break the lock
+        for state in (0, len(violation) - 1):
+            app.show_state(state)
+            factors = writer.ghosts[0].batched_opacities
+            met = holds(violation[state])
+            assert np.allclose(factors[~met], 1.0)  # the node's full VIOLATING_GHOST_OPACITY
+            assert np.allclose(factors[met], GHOST_OPACITY / VIOLATING_GHOST_OPACITY)
+        assert "those see-through robots denser" in app.panel.learn.legend.content
         with pytest.raises(ValueError, match="outside its limits"):  # the number field's bounds aside
             ikdp.LockedJoints({"panda_joint4": 0.5}).bind(app.solver.arm, 1, 1)
 
