@@ -232,9 +232,8 @@ class ChainSceneWriter(SceneWriter):
         self._ghost_colors = ghost_colors(view.num_states, view.num_samples, highlight)  # (S+1, K, 3)
         if follows_one(self.trail_of):
             self._ghost_colors[:, highlight] = HIGHLIGHTED_ROBOT  # the followed robot stands out at every step
-        tints = self.constraint_tints()
         self._ghost_opacities = ghost_opacities(np.ones((view.num_states, view.num_samples), bool))
-        if tints is not None:  # every robot and skeleton green where its constraints hold at that state, red where not
+        if self.constraint_colors_shown:  # every robot and skeleton green where its constraints hold, red where not,
             # in full colour: at the ghosts' opacity, and as thin lines sent as is (lighter on the page), the lighter
             # tints of the planar arms read as grey; the highlighted robot is the opaque one
             self._colors = self._ghost_colors = sample_tints(self.solved.state_violation, highlight, others_full=True)

@@ -460,18 +460,24 @@ class SceneWriter:
 
     # -------------------------------------------------------------- colouring by constraint
 
+    @property
+    def constraint_colors_shown(self) -> bool:
+        """Whether the samples are coloured by constraint now: asked for, and the solve on screen has a
+        constraint that can hold or fail."""
+        solved = self.solved
+        return self.color_by_constraint and solved is not None and solved.state_violation is not None
+
     def constraint_tints(self) -> np.ndarray | None:
         """(S+1, K, 3) every sample's colour at every state by whether its constraints hold (constraint_scene),
-        or None: not asked for, or the solve on screen has no constraint that can hold or fail."""
-        solved = self.solved
-        if not self.color_by_constraint or solved is None or solved.state_violation is None:
+        or None where `constraint_colors_shown` is False."""
+        if not self.constraint_colors_shown:
             return None
-        return sample_tints(solved.state_violation, self.highlight_index())
+        return sample_tints(self.solved.state_violation, self.highlight_index())
 
     def constraint_legend_entries(self) -> list[Entry]:
         """The Constraints folder's colours in the scene now: green and red, the free axis."""
         entries = []
-        if self.constraint_tints() is not None:
+        if self.constraint_colors_shown:
             entries += [
                 Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.HOLDS_TEXT),
                 Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), self.VIOLATES_TEXT),
@@ -710,7 +716,7 @@ class SceneWriter:
             return
         text = self._solve_text(solved)
         if solved.state_violation is not None:
-            text += "  \n" + met_text(solved.state_violation, self.state, colored=self.constraint_tints() is not None)
+            text += "  \n" + met_text(solved.state_violation, self.state, colored=self.constraint_colors_shown)
         self.panel.readout_text.content = text
 
     def _solve_text(self, solved) -> str:
