@@ -143,14 +143,17 @@ def track(
             return torch.ones(len(joints), dtype=torch.bool)
         return ConstraintSet(arm, list(constraints), 1, len(joints)).violation(joints[None])[0] == 0
 
-    def errors(joints: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
-        """joints (C, J) -> position error (C,) and, for pose targets, rotation error (C,)."""
+    def evaluated(joints: torch.Tensor, target: torch.Tensor) -> Candidates:
+        """joints (C, J) as candidates for one target: their errors and whether they meet the constraints."""
         rotation = arm.rotation_error(joints, target[None]) if arm.target_dim == 7 else None
-        return arm.tip_error(joints, target[None]), rotation
+        return Candidates(joints, arm.tip_error(joints, target[None]), rotation, meets(joints))
 
-    def within_tolerance(position_error: torch.Tensor, rotation_error: torch.Tensor | None) -> torch.Tensor:
-        ok = position_error < position_tolerance
-        return ok if rotation_error is None else ok & (rotation_error < rotation_tolerance)
+    def reaching(candidates: Candidates) -> torch.Tensor:
+        """(C,) True where a candidate is within the tolerances and meets the constraints."""
+        ok = candidates.position_error < position_tolerance
+        if candidates.rotation_error is not None:
+            ok &= candidates.rotation_error < rotation_tolerance
+        return ok & candidates.met
 
     def run_ahead(joints: torch.Tensor, index: int) -> torch.Tensor:
         """joints (C, J) reaching target `index` -> (C,) how many targets after it warm-started refinement reaches
@@ -159,7 +162,7 @@ def track(
         alive = torch.ones(len(joints), dtype=torch.bool)
         for target in path[index + 1 : index + 1 + look_ahead]:
             joints = refined(joints, target)
-            alive &= within_tolerance(*errors(joints, target)) & meets(joints)
+            alive &= reaching(evaluated(joints, target))
             if not alive.any():
                 break
             run += alive
@@ -178,8 +181,8 @@ def track(
         if full_targets and (warm_start or hold_step is not None):
             stretched = refined(previous[None], target)
         if warm_start and stretched is not None:  # one more candidate
-            candidates += Candidates(stretched, *errors(stretched, target), meets(stretched))
-        ok = within_tolerance(candidates.position_error, candidates.rotation_error) & candidates.met
+            candidates += evaluated(stretched, target)
+        ok = reaching(candidates)
         # nearest by the Euclidean joint distance, as the pseudo-inverse's minimum-norm step: by the largest
         # joint change alone, the other joints drift freely along a redundant arm's self-motion
         distance = joint_difference(arm, candidates.angles, previous).norm(dim=-1)  # (C,)
@@ -192,22 +195,18 @@ def track(
             pick = int(score.argmin())
         else:
             pick = int(torch.where(candidates.met, distance, distance + 1e6).argmin())  # nearest meeting constraints
-        chosen, chosen_position = candidates.angles[pick], candidates.position_error[pick]
-        chosen_reached = bool(ok[pick])
-        chosen_rotation = None if candidates.rotation_error is None else candidates.rotation_error[pick]
+        kept, at = candidates, pick
         if not ok.any() and hold_step is not None and stretched is not None:
             # hold the branch: toward the stretched pose, each joint at most hold_step (between two in-limit poses)
             step = joint_difference(arm, stretched[0], previous).clamp(-hold_step, hold_step)
-            held = arm.normalize_joints(previous + step)
-            if bool(meets(held[None])[0]):
-                held_position, held_rotation = errors(held[None], target)
-                chosen, chosen_position = held, held_position[0]
-                chosen_rotation = None if held_rotation is None else held_rotation[0]
-                chosen_reached = bool(within_tolerance(held_position, held_rotation)[0])
+            held = evaluated(arm.normalize_joints(previous + step)[None], target)
+            if bool(held.met[0]):
+                kept, at = held, 0
+        chosen, chosen_reached = kept.angles[at], bool(reaching(kept)[at])
         solutions.append(chosen)
-        position_errors.append(chosen_position)
-        if chosen_rotation is not None:
-            rotation_errors.append(chosen_rotation)
+        position_errors.append(kept.position_error[at])
+        if kept.rotation_error is not None:
+            rotation_errors.append(kept.rotation_error[at])
         reached.append(chosen_reached)
         jumps.append(float(joint_difference(arm, chosen, previous).abs().max()))
         previous, previous_reached = chosen, chosen_reached
