@@ -10,12 +10,6 @@ from pathlib import Path
 import torch
 
 
-def parse_sampler(text: str) -> tuple[str, int | None]:
-    """ "name[:steps]" -> (name, steps or None)."""
-    name, _, steps = text.partition(":")
-    return name, int(steps) if steps else None
-
-
 def timed(run):
     started = time.perf_counter()
     result = run()

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from benchmarks.constraint_common import run_pseudo_inverse, timed, within_pose_tolerance
+from benchmarks.robot_benchmark import parse_sampler
 
 if TYPE_CHECKING:
     from benchmarks.constraints import ConstraintBenchmarkConfig
@@ -137,7 +138,7 @@ def track_variants(config: ConstraintBenchmarkConfig, stress: bool) -> dict:
 
 def track_circle(solver, config: ConstraintBenchmarkConfig, start, path, reachable, seed: int, stress=False) -> dict:
     """Every method on one circle: label -> measured."""
-    name, _, steps = config.sampler.partition(":")
+    name, steps = parse_sampler(config.sampler)
     methods = {}
     for label, options in track_variants(config, stress).items():
         seconds, result = timed(
@@ -146,7 +147,7 @@ def track_circle(solver, config: ConstraintBenchmarkConfig, start, path, reachab
                 start,
                 num_samples=config.samples,
                 sampler=name,
-                steps=int(steps) if steps else None,
+                steps=steps,
                 refine_steps=config.refine_steps,
                 generator=torch.Generator().manual_seed(seed),
                 **options,

@@ -39,8 +39,9 @@ import torch
 import tyro
 
 import ikdp
-from benchmarks.constraint_common import parse_sampler, row, run_pseudo_inverse, timed, within_pose_tolerance
+from benchmarks.constraint_common import row, run_pseudo_inverse, timed, within_pose_tolerance
 from benchmarks.constraint_tracking import print_tracking, tracking_part
+from benchmarks.robot_benchmark import parse_sampler
 from ikdp.evaluation.machine import machine_description
 from ikdp.guidance import ConstraintSet
 from ikdp.link_spheres import link_spheres

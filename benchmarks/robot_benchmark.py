@@ -65,6 +65,7 @@ def default_output(checkpoint_path: str) -> Path:
 
 
 def parse_sampler(text: str) -> tuple[str, int | None]:
+    """ "name[:steps]" -> (name, steps or None); the constraint benchmarks read their samplers with it too."""
     name, _, steps = text.partition(":")
     return name, int(steps) if steps else None
 
