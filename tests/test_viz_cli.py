@@ -19,6 +19,12 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 
 
+def with_repo_on_path() -> dict[str, str]:
+    """This process's environment with the repository first on PYTHONPATH: a viewer started from another folder
+    still imports this checkout."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
+
+
 def run_cli(*arguments: str, cwd: Path = REPO) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "ikdp_viz", *arguments], cwd=cwd, capture_output=True, text=True, timeout=120
@@ -102,7 +108,7 @@ def test_default_model_a_taken_port_and_ctrl_c_even_started_with_sigint_ignored(
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
-            env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))},
+            env=with_repo_on_path(),
             # as `nohup ... &` or a CI runner starts it: SIGINT ignored, so Python installs no Ctrl-C handler of
             # its own (issue 19: the viewer then ran on through Ctrl-C); main() installs one
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
@@ -142,7 +148,7 @@ def test_ctrl_c_landing_on_another_thread_still_stops_the_viewer(tiny_checkpoint
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))},
+        env=with_repo_on_path(),
     )
     try:
         first = process.stdout.readline()
