@@ -217,6 +217,14 @@ def validate(config: TrainConfig) -> None:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
 
 
+def plain_values(config: TrainConfig) -> dict:
+    """The config as plain data for the checkpoint: a Path given by a caller is written as its string (a Path
+    object would be pickled code, which read_checkpoint refuses: the run would be lost at its first save)."""
+    return {
+        name: os.fspath(value) if isinstance(value, os.PathLike) else value for name, value in asdict(config).items()
+    }
+
+
 def log_folder(config: TrainConfig) -> Path:
     """Where TensorBoard events go: beside the checkpoint unless --log-dir says otherwise."""
     output = Path(config.output)
@@ -408,7 +416,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         solving_model = averaged.module if averaged is not None else model
         metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
         metrics["step"] = step
-        train_record = {**asdict(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
+        train_record = {**plain_values(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
         train_record["cpu_seconds"] = cpu_seconds_before + time.process_time() - cpu_started
         if metrics.get("tip_error_median") is not None:
             history.append({"step": step, "seconds": train_record["seconds"], **metrics})

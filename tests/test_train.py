@@ -348,3 +348,8 @@ def test_torchrun_trains_and_resumes(tmp_path):
     assert payload["train"]["step"] == 9 and payload["train"]["world_size"] == 2
     assert payload["train"]["hidden"] == 16  # read back from the checkpoint, not given again
     assert ikdp.load(output).num_links == 2
+
+
+def test_paths_given_as_path_objects_save_a_loadable_checkpoint(tmp_path):
+    output = train(small_config(tmp_path, steps=2, output=tmp_path / "as_path.pt", log_dir=tmp_path / "tb"))
+    assert ikdp.load(output).arm.num_joints == 2  # a Path in the record would be refused as pickled code
