@@ -142,10 +142,12 @@ def test_options_left_out_come_from_the_arms_recipe():
     planar = with_arm_defaults(TrainConfig())
     assert (planar.timesteps, planar.prediction, planar.hidden, planar.steps) == (80, "sample", 128, 20_000)
     robot_cpu = with_arm_defaults(TrainConfig(robot="spatial2"))
-    assert (robot_cpu.timesteps, robot_cpu.prediction, robot_cpu.schedule) == (100, "epsilon", "cosine")
-    assert (robot_cpu.hidden, robot_cpu.batch, robot_cpu.tip_loss_weight) == (256, 1024, 0.0)
+    assert (robot_cpu.timesteps, robot_cpu.prediction, robot_cpu.schedule) == (100, "sample", "karras")
+    assert (robot_cpu.hidden, robot_cpu.batch, robot_cpu.tip_loss_weight) == (256, 1024, 100.0)
     robot_gpu = with_arm_defaults(TrainConfig(robot="spatial2", device="cuda:1"))
-    assert (robot_gpu.hidden, robot_gpu.batch) == (512, 8192)
+    assert (robot_gpu.hidden, robot_gpu.batch, robot_gpu.prediction, robot_gpu.tip_loss_weight) == (
+        512, 8192, "epsilon", 0.0,
+    )  # fmt: skip
     given = with_arm_defaults(TrainConfig(robot="spatial2", hidden=64, schedule="karras"))
     assert (given.hidden, given.schedule, given.blocks) == (64, "karras", 4)  # what is given wins
     assert with_arm_defaults(TrainConfig(minutes=5.0)).steps > 10**9  # the clock alone ends it
@@ -159,7 +161,7 @@ def test_the_checkpoint_records_every_value_used_and_the_recipe(tmp_path):
     record = read_checkpoint(train(config))["train"]
     assert record["recipe"] == "robot, CPU"
     assert (record["hidden"], record["blocks"], record["batch"]) == (256, 4, 1024)
-    assert (record["prediction"], record["schedule"], record["ema"]) == ("epsilon", "cosine", 0.999)
+    assert (record["prediction"], record["schedule"], record["ema"]) == ("sample", "karras", 0.999)
     assert all(record[name] is not None for name in RECIPE_FIELDS)
 
 
