@@ -11,6 +11,7 @@ import ikdp
 from ikdp.guidance import ConstraintSet
 from ikdp.link_spheres import SHIPPED_FOLDER, arm_key, link_spheres
 from ikdp.refine import damped_least_squares, null_space_step
+from ikdp.tracking import branch_switches, needed_jumps
 
 SAMPLERS = [("ddpm", None), ("ddim", 5), ("dpmpp2m", 5)]
 
@@ -301,7 +302,44 @@ def test_tracking_follows_a_path_on_one_continuous_solution(tiny_checkpoint):
     assert result.angles.shape == (25, 3)
     assert bool(result.reached.all())
     assert result.largest_jump < 0.2  # 0.065 rad of arc per target: no branch switch
-    assert float(result.position_error.max()) < 1e-3 * solver.arm.span
+    assert not bool(result.branch_switches.any()) and result.switch_indices == []
+    assert float(result.position_error.max()) < solver.arm.position_tolerance == 1e-3 * solver.arm.span
+
+
+def test_tracking_reached_means_the_arms_tolerance_1_mm_and_1_degree_on_a_robot(tiny_chain_checkpoint):
+    solver = ikdp.load(tiny_chain_checkpoint)
+    arm = solver.arm
+    assert (arm.position_tolerance, arm.rotation_tolerance) == (1e-3, math.radians(1))  # metres: not 1e-3 x span
+    assert 1e-3 * arm.span > 1.2e-3
+    path = arm.end_effector(arm.random_poses(6, generator=seeded(4)))
+    start = arm.random_poses(1, generator=seeded(5))[0]
+    options = dict(num_samples=4, sampler="ddim", steps=3, refine_steps=3, warm_start=False, hold_step=None)
+    loose = solver.track(path, start, position_tolerance=10.0, rotation_tolerance=4.0, generator=seeded(), **options)
+    assert bool(loose.reached.all())  # the tolerances given are the ones applied
+    result = solver.track(path, start, generator=seeded(), **options)
+    expected = (result.position_error < 1e-3) & (result.rotation_error < math.radians(1))
+    assert torch.equal(result.reached, expected)
+
+
+def test_tracking_flags_a_branch_switch_and_not_a_move_along_the_path():
+    """The Panda along a straight line 1.5 mm a target: one continuous solution, then the same targets on another
+    branch from target 6 on (the arm's elbow flipped): a jump of radians where the path asks for hundredths."""
+    arm = ikdp.load_robot("panda")
+    start = torch.tensor([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], dtype=torch.float64)
+    hand = arm.end_effector(start)
+    path = hand + torch.arange(12, dtype=torch.float64)[:, None] * torch.tensor([0.0015, 0, 0, 0, 0, 0, 0])
+    along = damped_least_squares(arm, start.expand(12, -1)[None], path[None], steps=30)[0]  # (12, 7) continuous
+    flipped = torch.tensor([2.0, 1.0, -2.0, -1.5, 2.0, 2.5, -1.0], dtype=torch.float64)
+    other = damped_least_squares(arm, flipped.expand(12, -1)[None], path[None], steps=60)[0]
+    assert bool((arm.position_error(other, path) < 1e-6).all())  # the other branch reaches the same targets
+    assert float((other - along).abs().amax(dim=-1).min()) > 1.0  # radians apart all along: another branch
+    needed = needed_jumps(arm, path, start, along)
+    jumps = (along - torch.cat([start[None], along[:-1]])).abs().amax(dim=-1)
+    assert float(needed[1:].max()) < 0.05 and not bool(branch_switches(jumps, needed).any())
+    switched = torch.cat([along[:6], other[6:]])
+    jumps = (switched - torch.cat([start[None], switched[:-1]])).abs().amax(dim=-1)
+    flags = branch_switches(jumps, needed_jumps(arm, path, start, switched))
+    assert flags.nonzero().flatten().tolist() == [6]
 
 
 def circle_partly_out_of_reach(points: int) -> torch.Tensor:
