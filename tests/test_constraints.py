@@ -32,6 +32,7 @@ def test_the_registry_builds_every_kind_by_name():
     [
         (ikdp.LockedJoints({"panda_joint4": 0.5}), r"joint 'panda_joint4': value 0.5 outside its limits \[-3.07"),
         (ikdp.LockedJoints({"elbow": 0.0}), "unknown joint 'elbow'"),
+        (ikdp.LockedJoints({"panda_joint1": 0.1, 0: 0.2}), "joint 0 is locked twice, as 'panda_joint1' and as 0"),
         (ikdp.LockedJoints({7: 0.0}), "joint index 7 out of range"),
         (ikdp.LockedJoints({0: float("nan")}), "NaN or inf"),
         (ikdp.Obstacles([[0.3, float("nan"), 0.5]], [0.1]), "obstacles: centers: NaN or inf"),
