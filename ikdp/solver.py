@@ -28,6 +28,7 @@ from ikdp.tracking import TrackResult, track
 # ikdp_panda_cpu, hidden 256: 5.3 kB; refinement adds nothing to the peak): about 1 kB + 17 bytes per unit width.
 ROW_BYTES_FIXED = 1024
 ROW_BYTES_PER_WIDTH = 17
+MEMORY_CHECK_FROM = 2**28  # bytes: solves that need less are not checked against the free memory
 
 
 @dataclass
@@ -220,6 +221,8 @@ class Solver:
     def check_memory(self, rows: int, sampler: str, steps: int | None, trajectory: bool, estimates: bool) -> None:
         """ValueError, with the memory it would need, when B x K samples cannot fit in the device's free memory."""
         needed = self.sampling_bytes(rows, sampler, steps, trajectory, estimates)
+        if needed < MEMORY_CHECK_FROM:
+            return  # no need to read the free memory (a file read on a CPU) at every small solve
         available = available_bytes(self.device)
         if available is not None and needed > available:
             fits = max(1, rows * available // needed)
