@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import math
 import time
 from pathlib import Path
 
@@ -17,11 +16,13 @@ def timed(run):
 
 
 def within_pose_tolerance(arm, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """joints (B, K, J) -> (B, K) within 1 mm and 1 degree of the pose targets (B, 7) and within the joint limits."""
+    """joints (B, K, J) -> (B, K) within the arm's tolerances of the pose targets (B, 7), 1 mm and 1 degree on a
+    robot (what `track().reached` means too), and within the joint limits."""
     goals = targets[:, None].expand(-1, joints.shape[1], -1)
     limits = arm.joint_limits
     inside = ((joints >= limits[:, 0]) & (joints <= limits[:, 1])).all(dim=-1)
-    return inside & (arm.position_error(joints, goals) < 1e-3) & (arm.rotation_error(joints, goals) < math.radians(1))
+    close = arm.position_error(joints, goals) < arm.position_tolerance
+    return inside & close & (arm.rotation_error(joints, goals) < arm.rotation_tolerance)
 
 
 def row(valid: torch.Tensor, seconds: float, **extra) -> dict:
@@ -49,8 +50,8 @@ def run_pseudo_inverse(arm, targets: torch.Tensor, starts: torch.Tensor, iterati
         retry_configs=starts,
         joint_limits=arm.joint_limits,
         max_iterations=iterations,
-        pos_tolerance=1e-3,
-        rot_tolerance=math.radians(1),
+        pos_tolerance=arm.position_tolerance,
+        rot_tolerance=arm.rotation_tolerance,
         early_stopping_any_converged=True,
     )
     goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:])

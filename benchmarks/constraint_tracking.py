@@ -25,6 +25,7 @@ import torch
 
 from benchmarks.constraint_common import run_pseudo_inverse, timed, within_pose_tolerance
 from benchmarks.robot_benchmark import parse_sampler
+from ikdp.tracking import branch_switches, needed_jumps
 
 if TYPE_CHECKING:
     from benchmarks.constraints import ConstraintBenchmarkConfig
@@ -90,25 +91,29 @@ def draw_circles(arm, config: ConstraintBenchmarkConfig) -> dict:
 
 def track_with_pseudo_inverse(arm, path: torch.Tensor, start: torch.Tensor, iterations: int) -> dict:
     """Warm-started PseudoInverseIK: each target from the previous solution, one start."""
-    previous, jumps, reached, seconds = start, [], [], 0.0
+    previous, solutions, seconds = start, [], 0.0
     for target in path:
         spent, joints = run_pseudo_inverse(arm, target[None], previous[None], iterations)
         seconds += spent
-        chosen = joints[0, 0]
-        reached.append(bool(within_pose_tolerance(arm, chosen[None, None], target[None])[0, 0]))
-        jumps.append(float((chosen - previous).abs().max()))
-        previous = chosen
-    return {"reached": torch.tensor(reached), "jumps": torch.tensor(jumps), "seconds": seconds}
+        previous = joints[0, 0]
+        solutions.append(previous)
+    return {"angles": torch.stack(solutions), "seconds": seconds}
 
 
-def measured(reached: torch.Tensor, jumps: torch.Tensor, seconds: float, reachable: torch.Tensor) -> dict:
-    """One method on one circle: reached (P,) bool, jumps (P,) radians, against the certified `reachable` (P,)."""
+def measured(arm, path: torch.Tensor, start: torch.Tensor, angles: torch.Tensor, seconds: float, reachable) -> dict:
+    """One method's solutions `angles` (P, J) of a circle `path` (P, 7) followed from `start` (J,), against the
+    certified `reachable` (P,); every method scored by the same rule (within_pose_tolerance: 1 mm and 1 degree,
+    the rule of `track().reached`) and its branch switches flagged as `track` flags them."""
+    reached = within_pose_tolerance(arm, angles[:, None], path)[:, 0]
+    jumps = (angles - torch.cat([start[None], angles[:-1]])).abs().amax(dim=-1)  # the Panda has no continuous joint
+    switches = branch_switches(jumps, needed_jumps(arm, path, start, angles))
     return {
         "solved_share": float(reached.double().mean()),
         "solved_share_of_reachable": float(reached[reachable].double().mean()),
         "largest_jump_rad": float(jumps.max()),
         "jumps_over_0.1_rad": int((jumps > JUMP_BOUND).sum()),
         "jumps_over_0.1_rad_onto_reachable_targets": int(((jumps > JUMP_BOUND) & reachable).sum()),
+        "branch_switches": int(switches.sum()),
         "ms_per_target": 1000 * seconds / len(reached),
         "reached": reached.tolist(),
         "jumps_rad": jumps.tolist(),
@@ -153,13 +158,17 @@ def track_circle(solver, config: ConstraintBenchmarkConfig, start, path, reachab
                 **options,
             )
         )
-        methods[label] = measured(result.reached, result.joint_jumps, seconds, reachable)
+        methods[label] = measured(solver.arm, path, start, result.angles, seconds, reachable)
+        methods[label]["track_reached_agrees"] = result.reached.tolist() == methods[label]["reached"]
+        methods[label]["track_branch_switches_agree"] = (
+            int(result.branch_switches.sum()) == methods[label]["branch_switches"]
+        )
     try:
         tracked = track_with_pseudo_inverse(solver.arm, path, start, config.pk_iterations)
     except ImportError:  # pytorch_kinematics is a benchmark dependency (benchmarks/requirements-bench.txt)
         return methods
     label = f"pytorch_kinematics PseudoInverseIK, warm-started, {config.pk_iterations} iterations"
-    methods[label] = measured(tracked["reached"], tracked["jumps"], tracked["seconds"], reachable)
+    methods[label] = measured(solver.arm, path, start, tracked["angles"], tracked["seconds"], reachable)
     return methods
 
 
@@ -189,6 +198,7 @@ def tracking_part(solver, config: ConstraintBenchmarkConfig) -> dict:
             "solved_share": sum(reached) / len(reached),
             "largest_jump_rad": float(jumps.max()),
             "jumps_over_0.1_rad": int((jumps > JUMP_BOUND).sum()),
+            "branch_switches": sum(circle["methods"][label]["branch_switches"] for circle in circles),
             "ms_per_target": sum(circle["methods"][label]["ms_per_target"] for circle in circles) / len(circles),
             "meets_target": sum(reached) / len(reached) >= 0.99 and float(jumps.max()) <= JUMP_BOUND,
         }
@@ -220,9 +230,9 @@ def print_tracking(part: dict) -> None:
     print(part["certification"]["rejected_circles"])
     print(
         "| circle | reachable | method | solved | of reachable | largest jump (rad) | jumps > 0.1 rad (onto reachable) "
-        "| ms/target |"
+        "| branch switches | ms/target |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     rows = [(f"{index} ({circle['label']})", circle) for index, circle in enumerate(part["circles"])]
     if part["stress_circle"] is not None:
         rows.append((f"stress ({part['stress_circle']['label']})", part["stress_circle"]))
@@ -232,14 +242,15 @@ def print_tracking(part: dict) -> None:
                 f"| {name} | {100 * circle['reachable_share']:.1f} % | {label} | {100 * values['solved_share']:.1f} % "
                 f"| {100 * values['solved_share_of_reachable']:.1f} % | {values['largest_jump_rad']:.3f} "
                 f"| {values['jumps_over_0.1_rad']} ({values['jumps_over_0.1_rad_onto_reachable_targets']}) "
-                f"| {values['ms_per_target']:.1f} |"
+                f"| {values['branch_switches']} | {values['ms_per_target']:.1f} |"
             )
     summary = part["all_reachable_circles"]
     print(f"\nall certified circles together ({summary['targets']} targets)")
-    print("| method | solved | largest jump (rad) | jumps > 0.1 rad | ms/target | target met |")
-    print("|---|---|---|---|---|---|")
+    print("| method | solved | largest jump (rad) | jumps > 0.1 rad | branch switches | ms/target | target met |")
+    print("|---|---|---|---|---|---|---|")
     for label, values in summary["methods"].items():
         print(
             f"| {label} | {100 * values['solved_share']:.1f} % | {values['largest_jump_rad']:.3f} "
-            f"| {values['jumps_over_0.1_rad']} | {values['ms_per_target']:.1f} | {values['meets_target']} |"
+            f"| {values['jumps_over_0.1_rad']} | {values['branch_switches']} | {values['ms_per_target']:.1f} "
+            f"| {values['meets_target']} |"
         )

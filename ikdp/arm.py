@@ -96,6 +96,13 @@ class PlanarArm:
         """A length scale of the workspace: the outer reach."""
         return self.reach[1]
 
+    @property
+    def position_tolerance(self) -> float:
+        """How near the tip must come for a target to count as reached: 1e-3 of the reach, in bone lengths."""
+        return 1e-3 * self.span
+
+    rotation_tolerance = math.radians(1.0)  # radians; a planar target has no rotation, so it never applies
+
     def to_config(self) -> dict:
         return {"kind": self.kind, "lengths": list(self.lengths)}
 

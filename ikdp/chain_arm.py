@@ -284,6 +284,10 @@ class ChainArm:
         """A length scale: the sum of every offset's length along the chain (the base's included)."""
         return float(self._offsets[:, :3, 3].norm(dim=-1).sum() + self._ee_offset[:3, 3].norm())
 
+    # a target counts as reached within 1 mm and 1 degree (a URDF's lengths are metres), whatever the arm's size
+    position_tolerance = 1e-3  # metres
+    rotation_tolerance = math.radians(1.0)  # radians, for pose targets
+
     # --- kinematics ----------------------------------------------------------------------------
     def _constants_like(self, like: torch.Tensor) -> dict:
         key = (like.dtype, like.device)

@@ -81,9 +81,12 @@ def read_checkpoint(path: str | Path) -> dict:
         raise CheckpointError(
             f"{path}: refused, it holds {what}, not plain data; IKDP does not run code from a checkpoint"
         ) from None
-    except (RuntimeError, EOFError, OSError, zipfile.BadZipFile, KeyError) as error:
-        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise CheckpointError(f"{path}: unreadable or truncated checkpoint ({first_line})") from None
+    except (RuntimeError, EOFError, OSError, zipfile.BadZipFile, KeyError):
+        # torch's own message (a paragraph on miniz and how files get corrupted) says no more than this
+        raise CheckpointError(
+            f"{path}: unreadable or truncated checkpoint (its archive is damaged: written only in part, or changed "
+            f"after saving)"
+        ) from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise CheckpointError(f"{path}: not an IKDP checkpoint (no '{FORMAT}' format tag)")
     if payload.get("version") != VERSION:

@@ -36,8 +36,14 @@ class LockedJoints(Constraint):
         mask = torch.zeros(arm.num_joints, dtype=torch.bool)
         values = torch.zeros(batch * num_samples, arm.num_joints, dtype=torch.float64)
         limits = arm.joint_limits
+        named_as = {}  # joint index -> the key that locked it: a name and an index may name the same joint
         for key, value in self.values.items():
             index = joint_index(arm, key)
+            if index in named_as:
+                raise ValueError(
+                    f"locked_joints: joint {index} is locked twice, as {named_as[index]!r} and as {key!r}; lock it once"
+                )
+            named_as[index] = key
             label = f"locked_joints: joint {key!r}"
             value = finite_tensor(value, label)
             if arm.kind == "planar":

@@ -10,7 +10,7 @@ clears the depth in the null space of the target's rows (ikdp.refine.null_space_
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -29,16 +29,20 @@ GUIDANCE_MAX_STEP = 1.0  # radians: the largest joint move of one guidance step,
 class Obstacles(Constraint):
     """Spheres (a spatial arm) or discs (a planar arm) that no link may touch.
 
-    A planar arm's links are its bone segments; a robot's are spheres fitted to its collision
-    meshes (ikdp/link_spheres.py). Guidance moves x̂0 by a Gauss-Newton step on the total
-    penetration depth (aiming `clearance` beyond contact); refinement clears that depth second
-    to the target (half the clearance).
+    A planar arm's links are its bone segments; a robot's are spheres fitted to the collision
+    meshes of every link that moves with its chain (ikdp/link_spheres.py), the links hanging off it
+    included: the Panda's fingers, open (4 cm each) unless `held_joints` says otherwise. Guidance
+    moves x̂0 by a Gauss-Newton step on the total penetration depth (aiming `clearance` beyond
+    contact); refinement clears that depth second to the target (half the clearance).
     """
 
     centers: Sequence | torch.Tensor  # (O, 3) or (O, 2), or (B, O, d) per target; metres / bone lengths
     radii: Sequence | torch.Tensor | float  # (O,) or (B, O), or one radius for all
     clearance: float | None = None  # the gap guidance and refinement aim for; None: 1 % of the arm's span
     weight: float = 1.0  # per step, the share of the penetration removed from x̂0
+    # joints off the chain (a gripper's fingers) held at these values, by name; the others at the end of their
+    # range farthest from zero (the Panda's fingers open: {"panda_finger_joint1": 0.0} closes them)
+    held_joints: Mapping[str, float] | None = None
     name: ClassVar[str] = "obstacles"
 
     def bind(self, arm, batch: int, num_samples: int) -> BoundObstacles:
@@ -59,10 +63,14 @@ class Obstacles(Constraint):
             raise ValueError(f"obstacles: weight expected in [0, 1], got {self.weight}")
         clearance = 0.01 * arm.span if self.clearance is None else float(self.clearance)
         spheres = None
+        if arm.kind == "planar" and self.held_joints:
+            raise ValueError(
+                f"obstacles: held_joints: a planar arm has no joints off its chain, got {self.held_joints!r}"
+            )
         if arm.kind != "planar":
             from ikdp.link_spheres import link_spheres
 
-            spheres = link_spheres(arm)
+            spheres = link_spheres(arm, self.held_joints)
         return BoundObstacles(
             arm=arm,
             centers=per_row(centers, batch, num_samples, 2, "obstacles: centers").float(),

@@ -36,14 +36,20 @@ def robot_names() -> list[str]:
     return [*ROBOTS, "spatial<N>"]
 
 
-def load_robot(name: str, target: str = "pose") -> ChainArm:
-    """A shipped robot by name -> ChainArm with `target` "pose" (B, 7) or "position" (B, 3) targets."""
+def load_robot(name: str, target: str = "pose", ee_link: str | None = None) -> ChainArm:
+    """A shipped robot by name -> ChainArm with `target` "pose" (B, 7) or "position" (B, 3) targets.
+
+    `ee_link`: another end-effector link of the robot's URDF than its own (ValueError listing the links if
+    it has none of that name); the spatial arm's is always its tip.
+    """
     if name.startswith("spatial") and name[len("spatial") :].isdigit():
+        if ee_link is not None:
+            raise ValueError(f"ee_link: the spatial arm ends at its tip, got {ee_link!r}; --ee-link goes with a URDF")
         return spatial_arm(int(name[len("spatial") :]), target=target)
     if name not in ROBOTS:
         raise ValueError(f"name: unknown robot {name!r}, expected one of {robot_names()}")
     entry = ROBOTS[name]
-    return ChainArm.from_urdf(example_robot_data_file(entry.urdf), entry.ee_link, target=target)
+    return ChainArm.from_urdf(example_robot_data_file(entry.urdf), ee_link or entry.ee_link, target=target)
 
 
 def spatial_arm_urdf(num_links: int, *, bone_length: float = 1.0) -> str:

@@ -14,6 +14,7 @@ import torch
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint
 from ikdp.constraint_base import Constraint
+from ikdp.device import available_bytes, checked_device
 from ikdp.guidance import ConstraintSet
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
@@ -22,6 +23,12 @@ from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp.sampling import StepCallback
 from ikdp.shipped import shipped_checkpoint
 from ikdp.tracking import TrackResult, track
+
+# Peak memory of one sample row while sampling, measured on one CPU thread (ikdp_panda, hidden 512: 9.6 kB;
+# ikdp_panda_cpu, hidden 256: 5.3 kB; refinement adds nothing to the peak): about 1 kB + 17 bytes per unit width.
+ROW_BYTES_FIXED = 1024
+ROW_BYTES_PER_WIDTH = 17
+MEMORY_CHECK_FROM = 2**28  # bytes: solves that need less are not checked against the free memory
 
 
 @dataclass
@@ -53,7 +60,7 @@ class Solver:
     """A trained IKDP model, ready to solve. Build it with `ikdp.load(path or shipped name)`."""
 
     def __init__(self, model: IKDiffusion, prior: PosePrior, metadata: dict, device: str | torch.device = "cpu"):
-        self.device = torch.device(device)
+        self.device = checked_device(device)
         self.model = model.to(self.device).eval()
         self.arm = model.arm
         self.prior = prior
@@ -117,12 +124,8 @@ class Solver:
         """
         arm = self.arm
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
-        if not isinstance(num_samples, int) or num_samples < 1:
-            raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
-        if sampler not in SAMPLERS:
-            raise ValueError(f"sampler: expected one of {sampler_names()}, got {sampler!r}")
-        if not isinstance(refine_steps, int) or refine_steps < 0:
-            raise ValueError(f"refine_steps: expected a non-negative integer, got {refine_steps!r}")
+        self.check_options(len(targets), num_samples, sampler, steps, refine_steps, generator, initial_noise)
+        self.check_memory(len(targets) * num_samples, sampler, steps, return_trajectory, return_estimates)
         reachable = arm.is_reachable(targets)
         conditions = arm.clamp_to_workspace(targets)
         batch = len(targets)
@@ -187,6 +190,47 @@ class Solver:
             constraint_violation=None if bound is None else bound.violation(angles),
         )
 
+    def check_options(self, batch, num_samples, sampler, steps, refine_steps, generator, initial_noise) -> None:
+        """ValueError naming the first of solve's options that cannot run, before any work starts."""
+        if not is_integer(num_samples) or num_samples < 1:
+            raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
+        if sampler not in SAMPLERS:
+            raise ValueError(f"sampler: expected one of {sampler_names()}, got {sampler!r}")
+        if steps is not None and (not is_integer(steps) or steps < 1):
+            raise ValueError(f"steps: expected None or a positive integer, got {steps!r}")
+        if not is_integer(refine_steps) or refine_steps < 0:
+            raise ValueError(f"refine_steps: expected a non-negative integer, got {refine_steps!r}")
+        if generator is not None and not isinstance(generator, torch.Generator):
+            raise ValueError(f"generator: expected None or a torch.Generator, got {generator!r}")
+        if initial_noise is not None:
+            if not isinstance(initial_noise, torch.Tensor):
+                raise ValueError(f"initial_noise: expected a tensor x_T, got {type(initial_noise).__name__}")
+            expected = (batch, num_samples, self.noise_dim)
+            if tuple(initial_noise.shape) != expected:
+                raise ValueError(f"initial_noise: expected x_T of shape {expected}, got {tuple(initial_noise.shape)}")
+            if not bool(torch.isfinite(initial_noise).all()):
+                raise ValueError("initial_noise: holds NaN or inf; x_T must be finite")
+
+    def sampling_bytes(self, rows: int, sampler: str, steps: int | None, trajectory: bool, estimates: bool) -> int:
+        """About how much memory sampling `rows` = B x K samples takes at its peak, in bytes (ROW_BYTES_*)."""
+        per_row = ROW_BYTES_FIXED + ROW_BYTES_PER_WIDTH * self.model.config.denoiser.hidden
+        num_steps = self.model.sampler(sampler, steps).num_steps
+        per_row += 4 * self.noise_dim * ((num_steps + 1) * trajectory + num_steps * estimates)  # float32 states
+        return rows * per_row
+
+    def check_memory(self, rows: int, sampler: str, steps: int | None, trajectory: bool, estimates: bool) -> None:
+        """ValueError, with the memory it would need, when B x K samples cannot fit in the device's free memory."""
+        needed = self.sampling_bytes(rows, sampler, steps, trajectory, estimates)
+        if needed < MEMORY_CHECK_FROM:
+            return  # no need to read the free memory (a file read on a CPU) at every small solve
+        available = available_bytes(self.device)
+        if available is not None and needed > available:
+            fits = max(1, rows * available // needed)
+            raise ValueError(
+                f"num_samples: {rows} samples (targets x num_samples) need about {needed / 1e9:.1f} GB to sample, "
+                f"more than the {available / 1e9:.1f} GB free on {self.device}; solve at most about {fits} at a time"
+            )
+
     def track(self, path, start_pose, **options) -> TrackResult:
         """One continuous solution per target of a path (P, target_dim), starting from `start_pose` (J,).
 
@@ -196,6 +240,11 @@ class Solver:
         look_ahead and solve's.
         """
         return track(self, path, start_pose, **options)
+
+
+def is_integer(value) -> bool:
+    """An int, and not a bool (True is an int to Python, never a count to a caller)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def regroup_callback(callback: StepCallback, batch: int, num_samples: int) -> StepCallback:
@@ -217,10 +266,18 @@ def model_from_checkpoint(payload: dict, source: str = "<memory>") -> IKDiffusio
     state = payload["state_dict"]
     if not isinstance(state, dict) or not all(isinstance(value, torch.Tensor) for value in state.values()):
         raise CheckpointError(f"{source}: state_dict is not a dict of tensors")
-    try:
-        model.load_state_dict(state, strict=True)
-    except RuntimeError as error:
-        raise CheckpointError(f"{source}: weights do not match the model ({str(error).splitlines()[0]})") from None
+    expected = model.state_dict()
+    problems = [f"missing key {name!r}" for name in expected if name not in state]
+    problems += [f"unexpected key {name!r}" for name in state if name not in expected]
+    problems += [
+        f"key {name!r} has shape {tuple(state[name].shape)}, the model's {tuple(expected[name].shape)}"
+        for name in expected
+        if name in state and state[name].shape != expected[name].shape
+    ]
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise CheckpointError(f"{source}: weights do not match the model: {problems[0]}{more}")
+    model.load_state_dict(state, strict=True)
     return model
 
 
@@ -238,8 +295,10 @@ def resolve_checkpoint(path_or_name: str | Path) -> Path:
 def load(path: str | Path, device: str | torch.device = "cpu") -> Solver:
     """Load an IKDP checkpoint (a path, or a shipped model's name) as a Solver.
 
-    Refuses anything but a valid IKDP checkpoint (CheckpointError, one line).
+    Refuses anything but a valid IKDP checkpoint (CheckpointError, one line), and a device that is not
+    here (ValueError), before reading anything.
     """
+    device = checked_device(device)
     path = resolve_checkpoint(path)
     payload = read_checkpoint(path)
     model = model_from_checkpoint(payload, str(path))

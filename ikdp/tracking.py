@@ -9,6 +9,12 @@ redundant arm's self-motion, and on one Panda circle the path drifted into a str
 singularity that needed a 0.115 rad jump (0.043 by the Euclidean distance: docs/CONSTRAINTS.md).
 The previous solution refined toward the target is one more candidate (`warm_start`).
 
+A path the branch cannot follow (it runs into a joint limit) makes the arm switch branch: a jump of
+several radians between targets millimetres apart, which a user executing the path must know of.
+`TrackResult.branch_switches` flags each such target: its joint jump is larger than
+BRANCH_SWITCH_FLOOR and BRANCH_SWITCH_RATIO times the joint move the path step needs (the
+minimum-norm step J⁺ e from the pose before, e the task error toward the target).
+
 A path may leave the arm's reach (at a fixed orientation, part of a circle often does) and come
 back. Two rules keep the arm sound across such a stretch:
 - `hold_step`: where no candidate reaches a target, the arm holds its branch and stretches toward
@@ -35,6 +41,8 @@ from ikdp.joint_constraints import NearPose
 from ikdp.refine import damped_least_squares
 
 WARM_START_STEPS = 10  # DLS steps of the warm-started candidate (at least the solve's refine_steps)
+BRANCH_SWITCH_RATIO = 10.0  # a jump this many times the move the path step needs ...
+BRANCH_SWITCH_FLOOR = 0.1  # ... and above this many radians (the tracking target's bound) switches branch
 
 
 @dataclass
@@ -42,12 +50,33 @@ class TrackResult:
     angles: torch.Tensor  # (P, J) one solution per target, in path order
     position_error: torch.Tensor  # (P,) distance to each target's position (arm's length unit)
     rotation_error: torch.Tensor | None  # (P,) radians, for pose targets
-    reached: torch.Tensor  # (P,) True where the solution is within tolerance and meets every constraint
+    reached: torch.Tensor  # (P,) True within the arm's tolerances (robots: 1 mm and 1°) and every constraint
     joint_jumps: torch.Tensor  # (P,) largest joint change from the previous solution (the start pose first)
+    needed_jumps: torch.Tensor  # (P,) the largest joint change the path step needs there (J⁺ e, module docstring)
+    branch_switches: torch.Tensor  # (P,) True where the jump is a change of branch, not a move along the path
 
     @property
     def largest_jump(self) -> float:
         return float(self.joint_jumps.max())
+
+    @property
+    def switch_indices(self) -> list[int]:
+        """The targets at which the arm switched branch, in path order."""
+        return torch.nonzero(self.branch_switches).flatten().tolist()
+
+
+def needed_jumps(arm, path: torch.Tensor, start_pose: torch.Tensor, angles: torch.Tensor) -> torch.Tensor:
+    """(P,) the largest joint change of the minimum-norm step J⁺ e from each pose before (the start pose first)
+    toward its target: what moving along the path asks of the joints, to first order."""
+    before = torch.cat([start_pose[None], angles[:-1]]).double()  # (P, J)
+    error = arm.task_error(before, path.double())  # (P, E)
+    step = torch.linalg.pinv(arm.jacobian(before).double()) @ error[..., None]  # (P, J, 1)
+    return step[..., 0].abs().amax(dim=-1).float()
+
+
+def branch_switches(joint_jumps: torch.Tensor, needed: torch.Tensor) -> torch.Tensor:
+    """(P,) True where a jump is above BRANCH_SWITCH_FLOOR and BRANCH_SWITCH_RATIO times what the step needs."""
+    return (joint_jumps > BRANCH_SWITCH_FLOOR) & (joint_jumps > BRANCH_SWITCH_RATIO * needed)
 
 
 @dataclass
@@ -87,7 +116,7 @@ def track(
     *,
     weight: float = 0.6,
     position_tolerance: float | None = None,
-    rotation_tolerance: float = math.radians(1.0),
+    rotation_tolerance: float | None = None,
     constraints=(),
     warm_start: bool = True,
     hold_step: float | None = 0.05,
@@ -97,8 +126,9 @@ def track(
     """path (P, target_dim), start_pose (J,) -> one solution per target, each near the one before.
 
     `weight`: NearPose's pull (0.3 let a Panda circle jump branches once, 3.6 rad; 0.6 kept every
-    jump under 0.02 rad: docs/CONSTRAINTS.md); tolerances decide which samples count as reaching a target
-    (position: 1e-3 of the arm's span by default; 1 mm on a Panda); `solve_options` go to
+    jump under 0.02 rad: docs/CONSTRAINTS.md); the tolerances decide which samples count as reaching a
+    target and `reached` (None: the arm's own, `arm.position_tolerance` and `arm.rotation_tolerance`: 1 mm
+    and 1 degree on a robot, 1e-3 of the reach on a planar arm); `solve_options` go to
     `solver.solve` (num_samples, sampler, steps, refine_steps, generator). `warm_start`: the
     previous solution refined toward the target (damped least squares, as a warm-started numerical
     solver would) is one more candidate.
@@ -119,14 +149,15 @@ def track(
     """
     arm = solver.arm
     path = arm.validate_targets(path)
-    previous = torch.as_tensor(start_pose, dtype=torch.float32)
+    start = previous = torch.as_tensor(start_pose, dtype=torch.float32)
     if previous.shape != (arm.num_joints,):
         raise ValueError(f"start_pose: expected shape ({arm.num_joints},), got {tuple(previous.shape)}")
     if hold_step is not None and not hold_step > 0:
         raise ValueError(f"hold_step: expected a positive number of radians or None, got {hold_step}")
     if not isinstance(look_ahead, int) or look_ahead < 0:
         raise ValueError(f"look_ahead: expected a number of targets >= 0, got {look_ahead!r}")
-    position_tolerance = 1e-3 * arm.span if position_tolerance is None else position_tolerance
+    position_tolerance = arm.position_tolerance if position_tolerance is None else position_tolerance
+    rotation_tolerance = arm.rotation_tolerance if rotation_tolerance is None else rotation_tolerance
     # a partial target is met by the solve's own residual; the refinement below aims at full targets
     full_targets = not any(hasattr(item, "validate_targets") for item in constraints)
     refine_task = ConstraintSet(arm, list(constraints), 1, 1).refine_task() if constraints else None
@@ -210,10 +241,14 @@ def track(
         reached.append(chosen_reached)
         jumps.append(float(joint_difference(arm, chosen, previous).abs().max()))
         previous, previous_reached = chosen, chosen_reached
+    angles, joint_jumps = torch.stack(solutions), torch.tensor(jumps)
+    needed = needed_jumps(arm, path, start, angles)
     return TrackResult(
-        angles=torch.stack(solutions),
+        angles=angles,
         position_error=torch.stack(position_errors),
         rotation_error=torch.stack(rotation_errors) if rotation_errors else None,
         reached=torch.tensor(reached),
-        joint_jumps=torch.tensor(jumps),
+        joint_jumps=joint_jumps,
+        needed_jumps=needed,
+        branch_switches=branch_switches(joint_jumps, needed),
     )

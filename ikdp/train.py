@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields, replace
@@ -33,6 +34,7 @@ import torch.distributed as dist
 from ikdp.arm import PlanarArm
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.denoisers import DenoiserConfig
+from ikdp.device import checked_device
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior, make_prior
 from ikdp.schedule import ScheduleConfig
@@ -49,7 +51,7 @@ class TrainConfig:
     joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
     robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, z1, spatial<N> (ikdp.robots)
     urdf: str = ""  # or any serial chain from a URDF file (with --ee-link)
-    ee_link: str = ""  # the end-effector link of --urdf (--robot panda uses panda_hand)
+    ee_link: str = ""  # the end-effector link of --urdf; with --robot, another than its own (panda: panda_hand)
     base_link: str = ""  # where --urdf's chain starts, the frame of the targets; empty: the root of ee_link's tree
     target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
     lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
@@ -109,7 +111,7 @@ def build_chain_arm(config: TrainConfig):
     if config.robot:
         from ikdp.robots import load_robot
 
-        return load_robot(config.robot, target=config.target)
+        return load_robot(config.robot, target=config.target, ee_link=config.ee_link or None)
     if config.urdf:
         from ikdp.chain_arm import ChainArm
         from ikdp.urdf import link_names, links_phrase
@@ -215,6 +217,29 @@ def validate(config: TrainConfig) -> None:
     }.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
+    checked_device(config.device)
+    if Path(config.output).is_dir():
+        raise ValueError(f"output: {config.output!r} is a folder, expected the path of a checkpoint file")
+    # checked now, not at the first save: a run that cannot save its checkpoint loses all its training
+    check_writable(Path(config.output).parent, "output")
+    check_writable(log_folder(config), "log_dir")
+
+
+def check_writable(folder: Path, what: str) -> None:
+    """ValueError naming the option `what` unless files can be written in `folder` (made if missing): the nearest
+    folder that exists above it is probed with a temporary file, so nothing is left behind."""
+    existing = folder.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        if existing == folder.absolute():
+            raise ValueError(f"{what}: {str(folder)!r} is a file, where a folder was expected")
+        raise ValueError(f"{what}: cannot make the folder {str(folder)!r}: {str(existing)!r} is a file")
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as error:
+        raise ValueError(f"{what}: cannot write in {str(existing)!r} ({error.strerror or error})") from None
 
 
 def plain_values(config: TrainConfig) -> dict:

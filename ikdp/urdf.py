@@ -8,9 +8,12 @@ on that path with its visual and collision geometry, and the file it came from. 
 Supported joints: revolute (limits required, as URDF requires), continuous (no limits, the angle
 wraps; a <limit> on one is ignored), prismatic (limits required) and fixed. Anything else on the
 path (floating, planar) is refused, and so is a joint on the path that mimics another (the model
-treats every joint as free); joints off the path are ignored whatever their type, so a gripper's
-fingers do not matter. <dynamics>, <transmission>, <gazebo> and other elements are ignored. A
-xacro file is refused with the command that expands it.
+treats every joint as free). Links off the path that hang from a link on it (a gripper's fingers,
+a camera on a fixed joint, whatever follows the end effector) move with the chain: they are kept
+as `hanging` links, each with the joints from its chain link down to it, of any type and mimic
+included (the collision model holds their joints at stated values, ikdp/link_spheres.py).
+<dynamics>, <transmission>, <gazebo> and other elements are ignored. A xacro file is refused with
+the command that expands it.
 
 Mesh filenames `package://PKG/rest` are resolved by searching, from the URDF's folder upwards,
 for a folder `PKG/rest` or a folder named PKG holding `rest` (how ROS and example-robot-data
@@ -70,6 +73,16 @@ class JointDescription:
     axis: tuple[float, float, float]  # unit axis in the joint frame (URDF's default is x)
     lower: float | None  # lower limit, radians or metres; None for continuous and fixed joints
     upper: float | None  # upper limit; None for continuous and fixed joints
+    mimic: tuple[str, float, float] | None = None  # off the chain only: (joint it follows, multiplier, offset)
+
+
+@dataclass(frozen=True)
+class HangingLink:
+    """A link off the chain that hangs from a link on it, so it moves with the chain (a gripper's finger)."""
+
+    link: LinkDescription  # its name and geometry
+    parent: int  # the chain link it hangs from, an index into ChainDescription.links
+    joints: tuple[JointDescription, ...]  # from that chain link down to it; off-chain joints of any type
 
 
 @dataclass(frozen=True)
@@ -82,6 +95,7 @@ class ChainDescription:
     joints: tuple[JointDescription, ...]  # every joint on the path, fixed ones included, base first
     links: tuple[LinkDescription, ...]  # base_link, then each joint's child in order
     urdf_path: str | None  # the file it was read from (None when parsed from a string)
+    hanging: tuple[HangingLink, ...] = ()  # links off the chain that hang from it, depth first
 
     @property
     def movable_joints(self) -> tuple[JointDescription, ...]:
@@ -161,6 +175,22 @@ def parse_chain(
         raise ValueError(f"ee_link: no movable joint between {base_link!r} and {ee_link!r}")
     link_names = [base_link] + [joint.child for joint in joints]
     links = tuple(_read_link(link_elements[name], urdf_dir, search_dirs) for name in link_names)
+    children = {}  # parent link -> its joints' elements, in file order
+    for element in joint_to_child.values():
+        children.setdefault(element.find("parent").get("link"), []).append(element)
+    hanging = []
+    on_chain = set(link_names)
+    for parent, name in enumerate(link_names):
+        pending = [
+            (element, ()) for element in children.get(name, []) if element.find("child").get("link") not in on_chain
+        ]
+        while pending:  # depth first below the chain link
+            element, above = pending.pop(0)
+            joint = _read_hanging_joint(element)
+            hanging.append(
+                HangingLink(_read_link(link_elements[joint.child], urdf_dir, search_dirs), parent, (*above, joint))
+            )
+            pending[:0] = [(below, (*above, joint)) for below in children.get(joint.child, [])]
     return ChainDescription(
         robot_name=root.get("name", ""),
         base_link=base_link,
@@ -168,6 +198,7 @@ def parse_chain(
         joints=joints,
         links=links,
         urdf_path=str(urdf_path) if urdf_path is not None else None,
+        hanging=tuple(hanging),
     )
 
 
@@ -292,6 +323,46 @@ def _read_joint(element) -> JointDescription:
         axis=axis,
         lower=lower,
         upper=upper,
+    )
+
+
+def _read_hanging_joint(element) -> JointDescription:
+    """A joint off the chain, read leniently: it is never moved by IK, only held at a value.
+
+    A floating or planar joint is held at its origin (read as fixed); a missing limit is None; a mimic
+    joint records what it follows.
+    """
+    name = element.get("name")
+    joint_type = element.get("type") if element.get("type") in SUPPORTED_JOINT_TYPES else "fixed"
+    axis_element = element.find("axis")
+    axis = _floats(
+        axis_element.get("xyz") if axis_element is not None else None, 3, (1.0, 0.0, 0.0), f"joint {name!r} axis"
+    )
+    norm = math.sqrt(sum(value * value for value in axis))
+    if not norm > 0:
+        joint_type, axis = "fixed", (1.0, 0.0, 0.0)
+    limit = element.find("limit") if joint_type in ("revolute", "prismatic") else None
+    lower = upper = None
+    if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
+        lower = _float(limit.get("lower"), f"joint {name!r} lower limit")
+        upper = _float(limit.get("upper"), f"joint {name!r} upper limit")
+    mimic = element.find("mimic")
+    return JointDescription(
+        name=name,
+        type=joint_type,
+        parent=_required_attribute(_required_child(element, "parent", name), "link", f"joint {name!r} parent"),
+        child=_required_attribute(_required_child(element, "child", name), "link", f"joint {name!r} child"),
+        origin=_read_origin(element.find("origin"), f"joint {name!r}"),
+        axis=tuple(value / norm for value in axis) if norm > 0 else axis,
+        lower=lower,
+        upper=upper,
+        mimic=None
+        if mimic is None or joint_type == "fixed"
+        else (
+            _required_attribute(mimic, "joint", f"joint {name!r} mimic"),
+            _float(mimic.get("multiplier"), f"joint {name!r} mimic multiplier", 1.0),
+            _float(mimic.get("offset"), f"joint {name!r} mimic offset", 0.0),
+        ),
     )
 
 

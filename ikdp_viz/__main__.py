@@ -134,7 +134,9 @@ def load_solver(path: Path, device: str):
         fail(str(error))
     except OSError as error:
         fail(f"{path}: cannot read it ({error.strerror or error})")
-    except (RuntimeError, AssertionError) as error:  # torch's answer to an unknown or absent device
+    except ValueError as error:  # ikdp.load's answer to an unknown or absent device: "device: ..."
+        fail(f"--device {device}: {str(error).removeprefix('device: ')}")
+    except (RuntimeError, AssertionError) as error:  # torch's, should the device fail later
         reason = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
         fail(f"--device {device}: {reason}")
 

@@ -89,8 +89,36 @@ def test_mismatched_weights_are_refused(tiny_checkpoint, tmp_path):
     payload["model"]["denoiser"]["hidden"] = 48
     path = tmp_path / "mismatch.pt"
     torch.save(payload, path)
-    with pytest.raises(ikdp.CheckpointError, match="weights do not match"):
+    with pytest.raises(
+        ikdp.CheckpointError,
+        match=r"model: key 'denoiser.input.weight' has shape \(32, 11\), the model's \(48, 11\) \(and 8 more\)$",
+    ):
         ikdp.load(path)
+    payload = torch.load(tiny_checkpoint, weights_only=True)
+    payload["state_dict"]["denoiser.extra.weight"] = torch.zeros(2)
+    torch.save(payload, path)
+    with pytest.raises(ikdp.CheckpointError, match=r"weights do not match the model: unexpected key 'denoiser.extra"):
+        ikdp.load(path)
+    payload = torch.load(tiny_checkpoint, weights_only=True)
+    first = next(iter(payload["state_dict"]))
+    del payload["state_dict"][first]
+    torch.save(payload, path)
+    with pytest.raises(ikdp.CheckpointError, match=f"weights do not match the model: missing key '{first}'$"):
+        ikdp.load(path)
+
+
+def test_a_half_written_checkpoint_gets_a_short_message_not_torchs(tiny_checkpoint, tmp_path):
+    """The first half of the archive then its directory: a zip whose entries point past the data (torch's own
+    message is a 330-character paragraph about miniz)."""
+    data = tiny_checkpoint.read_bytes()
+    directory = data.find(b"PK\x01\x02")  # the zip's central directory, after every entry's data
+    half = tmp_path / "half.pt"
+    half.write_bytes(data[: directory // 2] + data[directory:])
+    with pytest.raises(ikdp.CheckpointError) as error:
+        ikdp.load(half)
+    message = str(error.value)
+    assert message == f"{half}: unreadable or truncated checkpoint (its archive is damaged: written only in part, " \
+        "or changed after saving)"  # fmt: skip
 
 
 def test_save_is_atomic(tmp_path):

@@ -355,3 +355,43 @@ def test_torchrun_trains_and_resumes(tmp_path):
 def test_paths_given_as_path_objects_save_a_loadable_checkpoint(tmp_path):
     output = train(small_config(tmp_path, steps=2, output=tmp_path / "as_path.pt", log_dir=tmp_path / "tb"))
     assert ikdp.load(output).arm.num_joints == 2  # a Path in the record would be refused as pickled code
+
+
+def test_a_cuda_device_without_cuda_is_refused_before_training(tmp_path, monkeypatch):
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ValueError, match=r"^device: got 'cuda', but torch finds no CUDA GPU here; use 'cpu'$"):
+        train(small_config(tmp_path, device="cuda"))
+    with pytest.raises(ValueError, match=r"^device: expected 'cpu', 'cuda' or 'cuda:N', got 'gpu'$"):
+        train(small_config(tmp_path, device="gpu"))
+    assert not (tmp_path / "tb").exists()
+
+
+def test_an_output_that_cannot_be_written_is_refused_before_training(tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("not a folder")
+    under_file = str(a_file / "model.pt")
+    for log_dir in ("", str(tmp_path / "tb")):  # with its own --log-dir the run used to train until its first save
+        with pytest.raises(ValueError, match=rf"^output: '{a_file}' is a file, where a folder was expected$"):
+            train(small_config(tmp_path, output=under_file, log_dir=log_dir))
+    with pytest.raises(ValueError, match=rf"^log_dir: cannot make the folder '{a_file}/logs': '{a_file}' is a file$"):
+        train(small_config(tmp_path, log_dir=str(a_file / "logs")))
+    with pytest.raises(ValueError, match="^output: .* is a folder, expected the path of a checkpoint file"):
+        train(small_config(tmp_path, output=str(tmp_path)))
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["a_file"]  # nothing trained, nothing made
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes in any folder")
+def test_an_output_in_a_read_only_folder_is_refused_before_training(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o555)
+    with pytest.raises(ValueError, match=rf"^output: cannot write in '{locked}' \(Permission denied\)"):
+        train(small_config(tmp_path, output=str(locked / "sub" / "model.pt")))
+
+
+def test_cli_refuses_an_output_under_a_file_in_one_line(tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    command = [sys.executable, "-m", "ikdp.train", "--joints", "2", "--output", str(a_file / "x.pt")]
+    result = subprocess.run(command, capture_output=True, text=True)
+    assert result.returncode == 2
+    assert result.stderr == f"ikdp-train: error: output: '{a_file}' is a file, where a folder was expected\n"

@@ -9,7 +9,7 @@ import torch
 import ikdp
 from ikdp.describe import describe
 from ikdp.robots import example_robot_data_file, spatial_arm_urdf
-from ikdp.train import TrainConfig, train
+from ikdp.train import TrainConfig, build_chain_arm, train
 
 
 def robot_config(tmp_path, **changes) -> TrainConfig:
@@ -113,3 +113,13 @@ def test_a_joint_locked_by_equal_limits_is_refused_before_training(tmp_path):
     with pytest.raises(ValueError, match="joint 'joint0_yaw' has equal lower and upper limits"):
         train(robot_config(tmp_path, robot="", urdf=str(urdf), ee_link="tip", target="position"))
     assert not (tmp_path / "robot.pt").exists()
+
+
+def test_a_robots_end_effector_link_is_honoured_or_refused_not_ignored(tmp_path):
+    with pytest.raises(ValueError, match=r"^ee_link: no link 'nope' in the URDF; its links: panda_link0, "):
+        train(robot_config(tmp_path, ee_link="nope"))
+    assert not (tmp_path / "tb").exists() and not (tmp_path / "robot.pt").exists()  # refused before training
+    assert build_chain_arm(robot_config(tmp_path, ee_link="panda_link8")).ee_link == "panda_link8"
+    assert build_chain_arm(robot_config(tmp_path)).ee_link == "panda_hand"  # the robot's own when none is given
+    with pytest.raises(ValueError, match="ee_link: the spatial arm ends at its tip, got 'tip'"):
+        build_chain_arm(robot_config(tmp_path, robot="spatial2", ee_link="tip"))

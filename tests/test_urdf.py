@@ -100,9 +100,33 @@ def test_default_base_is_the_top_of_the_end_effectors_tree():
     assert parse_chain(two_trees, "b").base_link == "a"
 
 
-def test_joints_off_the_path_are_ignored_whatever_their_type():
+def test_joints_off_the_path_stay_off_the_chain_whatever_their_type_and_their_links_hang_from_it():
     text = small_robot(joint("ab", "revolute", "a", "b") + joint("ac", "floating", "a", "c", ""))
-    assert [joint.name for joint in parse_chain(text, "b").joints] == ["ab"]
+    chain = parse_chain(text, "b")
+    assert [joint.name for joint in chain.joints] == ["ab"]
+    assert [(item.link.name, item.parent, [joint.type for joint in item.joints]) for item in chain.hanging] == [
+        ("c", 0, ["fixed"])  # a floating joint off the chain is held at its origin
+    ]
+    below = small_robot(
+        joint("ab", "revolute", "a", "b") + joint("bc", "fixed", "b", "c", "") + joint("cd", "prismatic", "c", "d")
+    )
+    assert [
+        (item.link.name, item.parent, [j.name for j in item.joints]) for item in parse_chain(below, "b").hanging
+    ] == [
+        ("c", 1, ["bc"]),
+        ("d", 1, ["bc", "cd"]),  # past the end effector, two joints down
+    ]
+
+
+def test_the_panda_fingers_hang_from_its_hand_one_mimicking_the_other():
+    chain = read_chain(example_robot_data_file(PANDA_URDF), "panda_hand")
+    hanging = {item.link.name: item for item in chain.hanging}
+    assert sorted(hanging) == ["panda_hand_tcp", "panda_leftfinger", "panda_rightfinger"]
+    assert {chain.links[item.parent].name for item in hanging.values()} == {"panda_hand"}
+    (left,), (right,) = hanging["panda_leftfinger"].joints, hanging["panda_rightfinger"].joints
+    assert (left.type, left.lower, left.upper, left.axis, left.mimic) == ("prismatic", 0.0, 0.04, (0.0, 1.0, 0.0), None)
+    assert right.mimic == ("panda_finger_joint1", 1.0, 0.0) and right.axis == (0.0, -1.0, 0.0)
+    assert len(hanging["panda_leftfinger"].link.collisions) == 4  # boxes: mount, sledge, diagonal, tip
 
 
 def test_missing_file_is_refused(tmp_path):
