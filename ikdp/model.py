@@ -72,7 +72,7 @@ class IKDiffusion(nn.Module):
         self.representation = AngleRepresentation(config.representation, self.arm.num_joints, limits=limits)
         self.schedule = DiffusionSchedule(config.schedule)
         self.denoiser = build_denoiser(config.denoiser, self.representation, self.arm)
-        self._samplers: dict[tuple[str, int | None], Sampler] = {}
+        self._samplers: dict[tuple[str, int | None, str], Sampler] = {}
 
     def compute_loss(
         self,
@@ -135,11 +135,11 @@ class IKDiffusion(nn.Module):
             "tip_distance": tip_miss.detach().sqrt().mean(),
         }
 
-    def sampler(self, name: str = "ddpm", steps: int | None = None) -> Sampler:
+    def sampler(self, name: str = "ddpm", steps: int | None = None, spacing: str = "uniform") -> Sampler:
         """The sampler `name` with `steps` steps, built once per model: its coefficients depend on the schedule only."""
-        key = (name, steps)
+        key = (name, steps, spacing)
         if key not in self._samplers:
-            self._samplers[key] = make_sampler(name, self.schedule, steps)
+            self._samplers[key] = make_sampler(name, self.schedule, steps, spacing)
         return self._samplers[key]
 
     @torch.inference_mode()
@@ -150,6 +150,7 @@ class IKDiffusion(nn.Module):
         num_samples: int = 1,
         sampler: str = "ddpm",
         steps: int | None = None,
+        spacing: str = "uniform",
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
         return_estimates: bool = False,
@@ -165,7 +166,7 @@ class IKDiffusion(nn.Module):
             self.denoiser,
             self.schedule,
             self.representation,
-            self.sampler(sampler, steps),
+            self.sampler(sampler, steps, spacing),
             targets,
             num_samples=num_samples,
             prediction=self.config.prediction,

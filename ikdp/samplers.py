@@ -7,7 +7,8 @@ denoiser's clean estimate x̂0 into a buffer it is given, so the loop allocates
 nothing per step. Timesteps are 0-based indices, noisiest first; after the last
 listed timestep every sampler lands on the clean end (alpha_cumprod = 1).
 
-    sampler = make_sampler("dpmpp2m", schedule, steps=10)
+    sampler = make_sampler("dpmpp2m", schedule, steps=10)               # evenly spaced timesteps
+    sampler = make_sampler("dpmpp2m", schedule, 8, spacing="quadratic")  # packed near t = 0
     for index, t in enumerate(sampler.timesteps):
         clean = ...                                  # the denoiser's x̂0 at (x, t)
         sampler.step(index, x, clean, out=x_next, generator=generator)
@@ -20,7 +21,7 @@ from typing import ClassVar
 
 import torch
 
-from ikdp.schedule import DiffusionSchedule
+from ikdp.schedule import TIMESTEP_SPACINGS, DiffusionSchedule
 
 
 class Sampler:
@@ -30,8 +31,18 @@ class Sampler:
     supports_steps: ClassVar[bool]  # False: the method always runs all T steps
     deterministic: ClassVar[bool]  # True: no noise is drawn after the initial x_T
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
+    def __init__(
+        self,
+        schedule: DiffusionSchedule,
+        steps: int | None = None,
+        *,
+        timesteps: list[int] | None = None,
+        spacing: str = "uniform",
+    ):
+        if spacing not in TIMESTEP_SPACINGS:
+            raise ValueError(f"spacing: expected one of {TIMESTEP_SPACINGS}, got {spacing!r}")
         self.schedule = schedule
+        self.spacing = spacing
         self.timesteps = list(timesteps) if timesteps is not None else self.default_timesteps(schedule, steps)
         if not self.timesteps or any(not 0 <= t < schedule.num_timesteps for t in self.timesteps):
             raise ValueError(f"timesteps: expected values in [0, {schedule.num_timesteps}), got {self.timesteps}")
@@ -47,7 +58,7 @@ class Sampler:
         return self.timesteps[index + 1] if index + 1 < len(self.timesteps) else -1
 
     def default_timesteps(self, schedule: DiffusionSchedule, steps: int | None) -> list[int]:
-        return schedule.ddim_timesteps(steps)
+        return schedule.timestep_grid(steps, self.spacing)
 
     def reset(self) -> None:
         """Forget the history of a previous run (multistep samplers keep one)."""
@@ -82,11 +93,18 @@ class DDPMSampler(Sampler):
     supports_steps = False
     deterministic = False
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
+    def __init__(
+        self,
+        schedule: DiffusionSchedule,
+        steps: int | None = None,
+        *,
+        timesteps: list[int] | None = None,
+        spacing: str = "uniform",
+    ):
         if steps not in (None, schedule.num_timesteps):
             total = schedule.num_timesteps
             raise ValueError(f"steps: DDPM runs all {total} steps, got {steps}; use 'ddim' or 'dpmpp2m' for fewer")
-        super().__init__(schedule, None, timesteps=timesteps)
+        super().__init__(schedule, None, timesteps=timesteps, spacing=spacing)  # all T steps: every spacing agrees
         floats = schedule.floats
         # q(x_{t-1} | x_t, x_0) = N(coef_clean x_0 + coef_noisy x_t, sigma_t^2)  (Ho eq. 6-7)
         self.coef_clean = [floats["posterior_mean_coef_clean"][t] for t in self.timesteps]
@@ -117,8 +135,15 @@ class DDIMSampler(Sampler):
     supports_steps = True
     deterministic = True
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
-        super().__init__(schedule, steps, timesteps=timesteps)
+    def __init__(
+        self,
+        schedule: DiffusionSchedule,
+        steps: int | None = None,
+        *,
+        timesteps: list[int] | None = None,
+        spacing: str = "uniform",
+    ):
+        super().__init__(schedule, steps, timesteps=timesteps, spacing=spacing)
         # x_prev = a_prev x̂0 + s_prev eps, eps = (x_t - a_t x̂0) / s_t
         #        = (s_prev / s_t) x_t + (a_prev - s_prev a_t / s_t) x̂0
         self.coef_noisy, self.coef_clean = [], []
@@ -148,8 +173,15 @@ class DPMSolverPP2MSampler(Sampler):
     supports_steps = True
     deterministic = True
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
-        super().__init__(schedule, steps, timesteps=timesteps)
+    def __init__(
+        self,
+        schedule: DiffusionSchedule,
+        steps: int | None = None,
+        *,
+        timesteps: list[int] | None = None,
+        spacing: str = "uniform",
+    ):
+        super().__init__(schedule, steps, timesteps=timesteps, spacing=spacing)
         self.coef_noisy, self.coef_clean, self.coef_previous = [], [], []
         previous_h = None
         for index, t in enumerate(self.timesteps):
@@ -203,8 +235,11 @@ def sampler_names() -> tuple[str, ...]:
     return tuple(SAMPLERS)
 
 
-def make_sampler(name: str, schedule: DiffusionSchedule, steps: int | None = None) -> Sampler:
-    """The sampler called `name` for `schedule`; ValueError naming the choices otherwise."""
+def make_sampler(name: str, schedule: DiffusionSchedule, steps: int | None = None, spacing: str = "uniform") -> Sampler:
+    """The sampler called `name` for `schedule`, its `steps` timesteps spread by `spacing` (TIMESTEP_SPACINGS).
+
+    ValueError naming the choices otherwise.
+    """
     if name not in SAMPLERS:
         raise ValueError(f"sampler: expected one of {sampler_names()}, got {name!r}")
-    return SAMPLERS[name](schedule, steps)
+    return SAMPLERS[name](schedule, steps, spacing=spacing)

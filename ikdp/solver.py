@@ -20,6 +20,7 @@ from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp.sampling import StepCallback
+from ikdp.schedule import TIMESTEP_SPACINGS
 from ikdp.shipped import shipped_checkpoint
 from ikdp.tracking import TrackResult, track
 
@@ -37,6 +38,7 @@ class SolveResult:
     stopped: bool = False  # True when the callback stopped the solve; the poses are the state reached then
     rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets (free axis: the axis's miss)
     constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
+    network_evaluations: int = 0  # denoiser calls each sample went through, one after another (the refinement: none)
 
     @property
     def constraints_met(self) -> torch.Tensor | None:
@@ -82,6 +84,10 @@ class Solver:
         """(inner, outer) radius of a planar arm's reachable annulus."""
         return self.arm.reach
 
+    def default_spacing(self, sampler: str, steps: int | None) -> str:
+        """The timestep spacing a solve uses when it names none."""
+        return "uniform"
+
     def solve(
         self,
         targets,
@@ -89,6 +95,7 @@ class Solver:
         num_samples: int = 16,
         sampler: str = "ddpm",
         steps: int | None = None,
+        spacing: str | None = None,
         refine_steps: int = 0,
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
@@ -108,6 +115,8 @@ class Solver:
         step with the state and the denoiser's x̂0 as joint values (B, K, J); returning
         True stops the solve at once (`stopped` is then True and no refinement runs).
 
+        `spacing`: how the sampler's `steps` timesteps spread over [0, T-1]: "uniform" or "quadratic"
+        (packed near t = 0); None: `default_spacing(sampler, steps)`.
         `initial_noise`: the pure noise x_T the samplers start from, (B, K, D) with D =
         `solver.noise_dim`; the same x_T given to DDPM and to DDIM compares the two on equal
         terms. None draws it from `generator` (as the first thing drawn).
@@ -121,6 +130,9 @@ class Solver:
             raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler: expected one of {sampler_names()}, got {sampler!r}")
+        spacing = self.default_spacing(sampler, steps) if spacing is None else spacing
+        if spacing not in TIMESTEP_SPACINGS:
+            raise ValueError(f"spacing: expected one of {TIMESTEP_SPACINGS} or None, got {spacing!r}")
         if not isinstance(refine_steps, int) or refine_steps < 0:
             raise ValueError(f"refine_steps: expected a non-negative integer, got {refine_steps!r}")
         reachable = arm.is_reachable(targets)
@@ -135,12 +147,13 @@ class Solver:
         guidance = None
         if bound is not None:
             rows = sample_targets.repeat_interleave(per_target, dim=0)
-            guidance = bound.guidance(self.model.representation, self.model.sampler(sampler, steps), rows)
+            guidance = bound.guidance(self.model.representation, self.model.sampler(sampler, steps, spacing), rows)
         result = self.model.sample(
             sample_targets,
             num_samples=per_target,
             sampler=sampler,
             steps=steps,
+            spacing=spacing,
             generator=generator,
             return_trajectory=return_trajectory,
             return_estimates=return_estimates,
@@ -185,6 +198,7 @@ class Solver:
             stopped=result.stopped,
             rotation_error=rotation_error,
             constraint_violation=None if bound is None else bound.violation(angles),
+            network_evaluations=result.network_evaluations,
         )
 
     def track(self, path, start_pose, **options) -> TrackResult:

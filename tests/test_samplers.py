@@ -31,6 +31,21 @@ def test_registry_names_and_bad_names():
         make_sampler("ddim", schedule, 81)
     with pytest.raises(ValueError, match="decreasing"):
         DDIMSampler(schedule, timesteps=[10, 20])
+    with pytest.raises(ValueError, match=r"spacing: expected one of \('uniform', 'quadratic'\), got 'even'"):
+        make_sampler("ddim", schedule, 4, spacing="even")
+
+
+@pytest.mark.parametrize("name", ["ddim", "dpmpp2m"])
+def test_spacing_chooses_the_grid_and_the_coefficients_follow(name):
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="cosine"))
+    packed = make_sampler(name, schedule, 4, spacing="quadratic")
+    assert packed.timesteps == [99, 44, 11, 0] and packed.spacing == "quadratic"
+    assert make_sampler(name, schedule, 4).timesteps == [99, 66, 33, 0]
+    # the same sampler on the same explicit timesteps: spacing only picks the grid
+    explicit = SAMPLERS[name](schedule, timesteps=[99, 44, 11, 0])
+    assert packed.coef_clean == explicit.coef_clean and packed.coef_noisy == explicit.coef_noisy
+    # the DDPM runs all T steps, so every spacing is the same run
+    assert make_sampler("ddpm", schedule, spacing="quadratic").timesteps == list(range(99, -1, -1))
 
 
 def test_ddpm_step_by_hand():
@@ -196,7 +211,7 @@ def test_callback_sees_every_step_and_can_stop(tiny_checkpoint):
         callback=record,
         generator=torch.Generator().manual_seed(0),
     )
-    assert not out.stopped
+    assert not out.stopped and out.network_evaluations == 8
     assert [index for index, *_ in seen] == list(range(8)) and [t for _, t, *_ in seen] == out.timesteps
     assert out.estimates.shape == (8, 2, 4, 3) and out.trajectory.shape == (9, 2, 4, 3)
     for index, _, state, estimate in seen:  # the callback's views are the recorded ones
@@ -211,4 +226,5 @@ def test_callback_sees_every_step_and_can_stop(tiny_checkpoint):
         [[1.0, 0.5]], num_samples=2, return_trajectory=True, refine_steps=3, callback=stop_after_three
     )
     assert stopped.stopped and stopped.trajectory.shape[0] == 4
+    assert stopped.network_evaluations == 3  # steps 0, 1 and 2 ran; the DDPM's other 17 did not
     torch.testing.assert_close(stopped.angles, stopped.trajectory[-1])  # the state reached, not refined
