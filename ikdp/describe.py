@@ -23,7 +23,9 @@ MACHINE_OPTIONS = {"resume"}  # how a run was continued, not what it trained
 
 
 def training_command(train: dict) -> str:
-    """The `python -m ikdp.train ...` command that reproduces a saved training config."""
+    """The `python -m ikdp.train ...` command that reproduces a saved training config (a student: its own)."""
+    if train.get("command"):  # ikdp.distill records the command it ran
+        return train["command"]
     parts = ["python -m ikdp.train"]
     for field in fields(TrainConfig):
         if field.name in NOT_OPTIONS or field.name in MACHINE_OPTIONS or field.name not in train:

@@ -159,6 +159,10 @@ class DDIMSampler(Sampler):
         out.add_(sample, alpha=self.coef_noisy[index])
         return out
 
+    def update(self, index: int, sample: torch.Tensor, clean: torch.Tensor) -> torch.Tensor:
+        """step()'s x_next as a new tensor that keeps the graph: ikdp.distill trains a student through it."""
+        return self.coef_clean[index] * clean + self.coef_noisy[index] * sample
+
 
 class DPMSolverPP2MSampler(Sampler):
     """DPM-Solver++(2M) (Lu et al. 2022, Alg. 2): second-order multistep in the data prediction.

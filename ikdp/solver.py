@@ -85,8 +85,16 @@ class Solver:
         return self.arm.reach
 
     def default_spacing(self, sampler: str, steps: int | None) -> str:
-        """The timestep spacing a solve uses when it names none."""
-        return "uniform"
+        """The timestep spacing a solve uses when it names none.
+
+        A distilled student's own (sampler, steps) use the grid it was trained on; a robot's few-step
+        solves use the grid packed near t = 0, which measured better at 4 to 16 evaluations on both shipped
+        Panda models (docs/BENCHMARKS.md, few-step sampling); a planar arm's keep the evenly spaced grid.
+        """
+        student = self.metadata.get("distill") or {}
+        if (sampler, steps) == (student.get("sampler"), student.get("steps")):
+            return student["spacing"]
+        return "quadratic" if self.arm.kind == "chain" else "uniform"
 
     def solve(
         self,
@@ -266,5 +274,6 @@ def load(path: str | Path, device: str | torch.device = "cpu") -> Solver:
         "model": payload["model"],
         "train": payload["train"],
         "metrics": payload["metrics"],
+        "distill": payload.get("distill"),  # a student of ikdp.distill: its teacher and its own sampler
     }
     return Solver(model, prior, metadata, device)
