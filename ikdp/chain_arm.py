@@ -258,6 +258,11 @@ class ChainArm:
         return self._limits.float()
 
     @property
+    def continuous_joints(self) -> torch.Tensor:
+        """(J,) bool: the joints without limits (URDF `continuous`), which wrap at +-pi instead of clamping."""
+        return self._continuous.clone()
+
+    @property
     def reach_center(self) -> torch.Tensor:
         """(3,) the first joint's origin: it never moves, so the end effector stays in a ball around it."""
         return self._offsets[0, :3, 3].float()

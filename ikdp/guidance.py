@@ -97,9 +97,8 @@ class SamplingGuidance:
         self.row_targets = row_targets  # (M, target_dim) each row's full condition
         locked = constraints.locked
         if locked is not None:
-            per_joint = representation.dim // self.arm.num_joints  # (cos, sin) per heading: two coordinates
             device = row_targets.device
-            self.locked_coordinates = locked.mask.repeat_interleave(per_joint).to(device)  # (D,)
+            self.locked_coordinates = representation.coordinate_mask(locked.mask).to(device)  # (D,)
             self.locked_clean = representation.encode(locked.values.to(device))  # (M, D)
         self.active = locked is not None or constraints.partial is not None or bool(constraints.others)
 

@@ -14,7 +14,7 @@ from torch import nn
 
 from ikdp.arm import PlanarArm, arm_from_config
 from ikdp.denoisers import DenoiserConfig, build_denoiser
-from ikdp.representation import AngleRepresentation
+from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 from ikdp.samplers import Sampler, make_sampler
 from ikdp.sampling import Guidance, StepCallback, Trajectory, run_reverse_diffusion
 from ikdp.schedule import PREDICTION_KINDS, DiffusionSchedule, ScheduleConfig
@@ -68,8 +68,13 @@ class IKDiffusion(nn.Module):
         self.arm = config.build_arm()
         if self.arm.kind == "planar":  # kept for callers that still read model.lengths
             self.register_buffer("lengths", torch.tensor(self.arm.lengths, dtype=torch.float32), persistent=False)
-        limits = self.arm.joint_limits if config.representation == "limits" else None
-        self.representation = AngleRepresentation(config.representation, self.arm.num_joints, limits=limits)
+        robot = config.representation in SCALED_BY_LIMITS
+        self.representation = AngleRepresentation(
+            config.representation,
+            self.arm.num_joints,
+            limits=self.arm.joint_limits if robot else None,
+            continuous=self.arm.continuous_joints if robot else None,
+        )
         self.schedule = DiffusionSchedule(config.schedule)
         self.denoiser = build_denoiser(config.denoiser, self.representation, self.arm)
         self._samplers: dict[tuple[str, int | None, str], Sampler] = {}

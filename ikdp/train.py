@@ -29,7 +29,6 @@ from typing import Literal
 
 import torch
 import torch.distributed as dist
-from tqdm import tqdm
 
 from ikdp.arm import PlanarArm
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
@@ -38,11 +37,14 @@ from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior, make_prior
 from ikdp.schedule import ScheduleConfig
 from ikdp.solver import model_from_checkpoint
+from ikdp.train_budget import TrainingBudget
+from ikdp.train_progress import TrainingProgress, accuracy_text
+from ikdp.train_recipes import RECIPE_FIELDS, Recipe, recipe_for, recipes_help
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """Train an IKDP conditional diffusion model for a planar N-link arm."""
+    """Train an IKDP conditional diffusion model for a planar N-link arm or a robot (--robot, --urdf)."""
 
     joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
     robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, z1, spatial<N> (ikdp.robots)
@@ -51,23 +53,24 @@ class TrainConfig:
     base_link: str = ""  # where --urdf's chain starts, the frame of the targets; empty: the root of ee_link's tree
     target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
     lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
-    timesteps: int = 80  # diffusion steps T
-    schedule: Literal["linear", "cosine", "karras"] = "linear"  # noise schedule; karras: EDM's levels, fine at t=0
+    timesteps: int | None = None  # diffusion steps T; None: the arm's recipe (see above), as every None here
+    schedule: Literal["linear", "cosine", "karras"] | None = None  # noise schedule; karras: EDM's levels
     denoiser: Literal["film", "mlp", "paper"] = "film"  # film (ours; chain_film on a robot), mlp (plain), paper
     representation: Literal["cossin", "angle"] = "cossin"  # cossin or angle (paper's theta); robots: joint limits
-    prediction: Literal["sample", "epsilon"] = "sample"  # the denoiser predicts the clean sample (x_0) or the noise
-    hidden: int = 128  # film: MLP width
-    blocks: int = 3  # film: residual blocks
+    prediction: Literal["sample", "epsilon"] | None = None  # the denoiser predicts the clean sample (x_0) or the noise
+    hidden: int | None = None  # film: MLP width
+    blocks: int | None = None  # film: residual blocks
     kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
     kinematics_past_limits: bool = False  # robots: FK features and loss at unclamped joint values (keeps a gradient)
-    ema: float = 0.0  # decay of an exponential moving average of the weights, saved for solving (0: none)
+    ema: float | None = None  # decay of an exponential moving average of the weights, saved for solving (0: none)
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
-    tip_loss_weight: float = 100.0  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
-    snr_gamma: float = 5.0  # Min-SNR loss weighting min(SNR, gamma)/gamma; 0 = uniform over t, the paper's
-    steps: int = 20_000  # optimizer steps
-    batch: int = 1024  # poses per step and per process
-    lr: float = 1e-3  # peak learning rate (AdamW), cosine decay to a tenth
-    warmup: int = 500  # linear warmup steps
+    tip_loss_weight: float | None = None  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
+    snr_gamma: float | None = None  # Min-SNR loss weighting min(SNR, gamma)/gamma; 0 = uniform over t, the paper's
+    steps: int | None = None  # optimizer steps; None: the recipe's, or no step limit under --minutes
+    minutes: float = 0.0  # wall-clock budget in minutes (evaluations at saves included); 0: steps alone
+    batch: int | None = None  # poses per step and per process
+    lr: float | None = None  # peak learning rate (AdamW), cosine decay to a tenth over the budget
+    warmup: int | None = None  # linear warmup steps
     seed: int = 0  # seeds the weights and the data stream (process r draws from seed + r)
     device: str = "cpu"  # cpu, cuda, cuda:1, ...; under torchrun, cuda means each process's own GPU
     threads: int = 0  # torch CPU threads; 0 leaves torch's default
@@ -79,7 +82,22 @@ class TrainConfig:
     init_from: str = ""  # start from this checkpoint's weights (same arm and network), fresh optimizer and data
 
 
-RECORD_ONLY = ("step", "seconds", "finished", "torch_version", "threads", "world_size")  # train-record extras
+TrainConfig.__doc__ = f"{TrainConfig.__doc__}\n\n{recipes_help()}"
+NO_STEP_LIMIT = 10**12  # --minutes without --steps: the clock alone ends the run
+
+
+def recipe_of(config: TrainConfig) -> Recipe:
+    """The recipe that fills what `config` leaves out: planar, or a robot's for its device."""
+    return recipe_for(robot=bool(config.robot or config.urdf), device_type=config.device.split(":")[0])
+
+
+def with_arm_defaults(config: TrainConfig) -> TrainConfig:
+    """`config` with every option left out (None) taken from its arm's recipe."""
+    recipe = recipe_of(config)
+    chosen = {name: getattr(recipe, name) for name in RECIPE_FIELDS if getattr(config, name) is None}
+    if config.steps is None and config.minutes > 0:
+        chosen["steps"] = NO_STEP_LIMIT
+    return replace(config, **chosen)
 
 
 def build_chain_arm(config: TrainConfig):
@@ -126,7 +144,7 @@ def build_model(config: TrainConfig) -> IKDiffusion:
     denoiser = "chain_film" if chain is not None and config.denoiser == "film" else config.denoiser
     model_config = ModelConfig(
         lengths=tuple(float(length) for length in lengths),
-        representation="limits" if chain is not None else config.representation,
+        representation="joints" if chain is not None else config.representation,
         prediction=config.prediction,
         schedule=ScheduleConfig(timesteps=config.timesteps, kind=config.schedule),
         denoiser=DenoiserConfig(
@@ -157,6 +175,7 @@ def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: t
         "tip_error_mean": float(error.mean()),
         "tip_error_p95": float(error.quantile(0.95)),
         "sampler": "ddpm raw, K=1",
+        "tip_error_units": "m" if arm.kind == "chain" else "bone lengths",
     }
     if arm.target_dim == 7:  # pose targets: the rotation error too, radians
         rotation = arm.rotation_error(poses.cpu(), targets)
@@ -192,6 +211,7 @@ def validate(config: TrainConfig) -> None:
         "warmup": config.warmup,
         "eval_targets": config.eval_targets,
         "threads": config.threads,
+        "minutes": config.minutes,
     }.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
@@ -210,19 +230,6 @@ def saved_config(payload: dict) -> TrainConfig:
     if isinstance(values.get("lengths"), list):
         values["lengths"] = tuple(values["lengths"])
     return replace(TrainConfig(), **values)
-
-
-def warmup_cosine(optimizer: torch.optim.Optimizer, config: TrainConfig) -> torch.optim.lr_scheduler.LRScheduler:
-    """Linear warm-up from lr/warmup to lr over `warmup` steps, then cosine decay to lr/10 at the last step."""
-    cosine = torch.optim.lr_scheduler.CosineAnnealingLR(
-        optimizer, T_max=max(1, config.steps - config.warmup), eta_min=config.lr / 10
-    )
-    if config.warmup == 0:
-        return cosine
-    warmup = torch.optim.lr_scheduler.LinearLR(
-        optimizer, start_factor=1 / config.warmup, end_factor=1.0, total_iters=config.warmup - 1
-    )
-    return torch.optim.lr_scheduler.SequentialLR(optimizer, [warmup, cosine], milestones=[config.warmup])
 
 
 @dataclass(frozen=True)
@@ -279,15 +286,16 @@ def training_step(
     headings: torch.Tensor,
     generator: torch.Generator,
     optimizer: torch.optim.Optimizer,
-    scheduler: torch.optim.lr_scheduler.LRScheduler,
+    lr: float,
 ) -> dict[str, torch.Tensor]:
-    """One optimizer step on `headings`; under DDP the backward pass averages the gradients over processes."""
+    """One optimizer step at rate `lr` on `headings`; under DDP the backward pass averages the gradients."""
+    for group in optimizer.param_groups:
+        group["lr"] = lr
     losses = loss(headings, generator)
     optimizer.zero_grad(set_to_none=True)
     losses["loss"].backward()
     torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
     optimizer.step()
-    scheduler.step()
     return losses
 
 
@@ -300,6 +308,15 @@ def gather_data_states(data_generator: torch.Generator, processes: Distributed) 
     return states
 
 
+def agreed_seconds(seconds: float, processes: Distributed, budget: TrainingBudget) -> float:
+    """The training's clock, the same in every process (the slowest one's), so all stop and set the same rate."""
+    if processes.world_size == 1 or budget.minutes == 0:  # without a clock, the rate and the end are by steps
+        return seconds
+    clock = torch.tensor([seconds], dtype=torch.float64, device=processes.device)
+    dist.all_reduce(clock, op=dist.ReduceOp.MAX)
+    return float(clock)
+
+
 StepHook = Callable[[int, IKDiffusion, torch.Tensor], None]  # (step just taken, model, the batch it drew)
 
 
@@ -308,6 +325,7 @@ def train(config: TrainConfig, on_step: StepHook | None = None) -> Path:
 
     `on_step`, when given, is called in every process after each optimizer step, to watch a run.
     """
+    config = with_arm_defaults(config)
     validate(config)
     if config.threads:
         torch.set_num_threads(config.threads)
@@ -334,9 +352,10 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         load_initial_weights(model, config.init_from)
     prior = make_prior(config.prior, model.arm.num_joints)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=0.0)
-    scheduler = warmup_cosine(optimizer, config)
+    budget = TrainingBudget(steps=config.steps, minutes=config.minutes, warmup=config.warmup)
     data_generator = torch.Generator().manual_seed(config.seed + processes.rank)
-    step, seconds_before = 0, 0.0
+    step, seconds_before, cpu_seconds_before = 0, 0.0, 0.0
+    history: list[dict] = []  # (step, seconds, metrics) at every save: the run's minutes-to-accuracy curve
     if processes.is_main:
         remove_stale_temporaries(output)  # a save killed mid-write (SIGKILL) left its temp file
     # the averaged weights are the ones a solver loads; the raw ones continue training on --resume
@@ -355,9 +374,10 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
             averaged.n_averaged.fill_(int(payload["train"]["step"]))
             model.load_state_dict(payload["raw_state_dict"])
         optimizer.load_state_dict(payload["optimizer"])
-        scheduler.load_state_dict(payload["scheduler"])
         step = int(payload["train"]["step"])
         seconds_before = float(payload["train"]["seconds"])
+        cpu_seconds_before = float(payload["train"].get("cpu_seconds", 0.0))
+        history = list(payload.get("history", []))
         states = payload.get("data_generators") or [payload["data_generator"]]
         if len(states) == processes.world_size:
             data_generator.set_state(states[processes.rank])
@@ -380,7 +400,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
             raise ValueError("TensorBoard is not installed: pip install 'ikdp[train]'") from None
         writer = SummaryWriter(str(log_folder(config)), purge_step=step)
         print(f"TensorBoard logs: {log_folder(config)}", file=sys.stderr)
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     metrics: dict = {}
 
     def save(final: bool, data_states: list[torch.Tensor] | None) -> None:
@@ -389,19 +409,25 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
         metrics["step"] = step
         train_record = {**asdict(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
+        train_record["cpu_seconds"] = cpu_seconds_before + time.process_time() - cpu_started
+        if metrics.get("tip_error_median") is not None:
+            history.append({"step": step, "seconds": train_record["seconds"], **metrics})
+            history[-1]["cpu_seconds"] = train_record["cpu_seconds"]  # the process's CPU time: a shared machine's
+            # wall clock runs 2-4 times faster than a thread's work, this does not
         train_record["finished"] = final
         train_record["torch_version"] = str(torch.__version__)
         train_record["threads"] = torch.get_num_threads()
         train_record["world_size"] = processes.world_size
+        train_record["recipe"] = recipe_of(config).name  # where the options left out came from
         payload = {
             "model": model.config.to_dict(),
             "prior": prior.to_config(),
             "train": train_record,
             "metrics": metrics,
+            "history": history,
             "state_dict": solving_model.state_dict(),  # the averaged weights when --ema: what a solver loads
             **({"raw_state_dict": model.state_dict()} if averaged is not None else {}),
             "optimizer": optimizer.state_dict(),
-            "scheduler": scheduler.state_dict(),
             "data_generator": data_generator.get_state(),
         }
         if data_states is not None:
@@ -410,31 +436,31 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         writer.add_scalar("eval/tip_error_median", metrics.get("tip_error_median", float("nan")), step)
 
     interrupted = False
-    progress = tqdm(
-        total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True, disable=not processes.is_main
-    )
+    seconds = seconds_before
+    progress = TrainingProgress(budget, step=step, seconds=seconds, name=output.stem, enabled=processes.is_main)
     model.train()
     try:
-        while step < config.steps:
+        while not budget.finished(step, seconds):
             headings = draw_batch(prior, model.arm, config.batch, data_generator, device)
-            losses = training_step(loss, headings, data_generator, optimizer, scheduler)
+            lr = config.lr * budget.lr_factor(step, seconds)
+            losses = training_step(loss, headings, data_generator, optimizer, lr)
             if averaged is not None:
                 averaged.update_parameters(model)
             step += 1
+            seconds = agreed_seconds(seconds_before + time.perf_counter() - started, processes, budget)
             if on_step is not None:
                 on_step(step, model, headings)
-            if processes.is_main and (step % 50 == 0 or step == config.steps):
+            if processes.is_main and (step % 50 == 0 or budget.finished(step, seconds)):
                 writer.add_scalar("train/theta_loss", float(losses["theta_loss"]), step)
                 writer.add_scalar("train/tip_distance", float(losses["tip_distance"]), step)
-                writer.add_scalar("train/lr", scheduler.get_last_lr()[0], step)
-                progress.set_postfix(
-                    loss=f"{float(losses['theta_loss']):.4f}", tip=f"{float(losses['tip_distance']):.4f}"
-                )
-            progress.update(1)
-            if step % config.save_every == 0 and step < config.steps:
+                writer.add_scalar("train/lr", lr, step)
+                progress.show_losses(step, float(losses["theta_loss"]), float(losses["tip_distance"]))
+            progress.advance(step, seconds)
+            if step % config.save_every == 0 and not budget.finished(step, seconds):
                 data_states = gather_data_states(data_generator, processes)
                 if processes.is_main:
                     save(final=False, data_states=data_states)
+                    progress.show_accuracy(metrics)
         data_states = gather_data_states(data_generator, processes)
     except KeyboardInterrupt:
         interrupted = True  # no collective now: the other processes may be gone; they resume on fresh streams
@@ -444,8 +470,11 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         save(final=not interrupted, data_states=data_states)
         writer.close()
         state = "interrupted, resumable with --resume" if interrupted else "done"
-        median = metrics.get("tip_error_median", float("nan"))
-        print(f"{output}: {state} at step {step}; median tip error {median:.4g}", file=sys.stderr)
+        minutes = (seconds_before + time.perf_counter() - started) / 60
+        print(
+            f"{output}: {state} at step {step} ({minutes:.1f} min); held-out median {accuracy_text(metrics)}",
+            file=sys.stderr,
+        )
     if interrupted:
         raise SystemExit(130)
     return output

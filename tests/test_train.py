@@ -14,7 +14,9 @@ import torch
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.priors import PosePrior, load_pose_file, make_prior
-from ikdp.train import TrainConfig, parse_config, train, warmup_cosine
+from ikdp.train import TrainConfig, parse_config, train, with_arm_defaults
+from ikdp.train_budget import TrainingBudget
+from ikdp.train_recipes import RECIPE_FIELDS
 
 
 def small_config(tmp_path, **changes):
@@ -97,24 +99,68 @@ def test_resume_reads_the_training_config_from_the_checkpoint(tmp_path):
     output = train(first)
     assert read_checkpoint(output)["train"]["world_size"] == 1
     config = parse_config(["--output", str(output), "--resume", "--steps", "20"])
-    assert config == replace(first, steps=20, resume=True)  # the command line overrides, the checkpoint fills in
+    assert config == with_arm_defaults(replace(first, steps=20, resume=True))  # the line overrides, the file fills in
     assert parse_config(["--output", str(output), "--steps", "20"]).hidden == TrainConfig.hidden  # no --resume
 
 
 def test_learning_rate_warms_up_then_decays_to_a_tenth():
-    config = TrainConfig(steps=1100, warmup=100, lr=1e-3)
-    optimizer = torch.optim.SGD([torch.nn.Parameter(torch.zeros(1))], lr=config.lr)
-    scheduler = warmup_cosine(optimizer, config)
-    rates = []
-    for _ in range(config.steps):
-        rates.append(optimizer.param_groups[0]["lr"])
-        optimizer.step()
-        scheduler.step()
+    budget = TrainingBudget(steps=1100, warmup=100)
+    rates = [1e-3 * budget.lr_factor(step, seconds=0.0) for step in range(budget.steps)]
     assert rates[0] == pytest.approx(1e-5)  # lr / warmup
     assert rates[49] == pytest.approx(0.5e-3)  # (step + 1) / warmup of the peak
     assert rates[99] == pytest.approx(1e-3) and rates[100] == pytest.approx(1e-3)
     assert rates[600] == pytest.approx(0.55e-3)  # half-way down the cosine: between the peak and a tenth
     assert rates[-1] == pytest.approx(1e-4, rel=1e-3)  # a tenth of the peak at the end
+
+
+def test_a_clock_budget_decays_the_rate_and_ends_by_minutes():
+    budget = TrainingBudget(steps=10**12, minutes=2.0, warmup=10)
+    assert budget.lr_factor(5, seconds=1.0) == pytest.approx(0.6)  # the warm-up is in steps either way
+    assert budget.lr_factor(50, seconds=60.0) == pytest.approx(0.55)  # half the clock: half-way down the cosine
+    assert budget.progress(50, seconds=30.0) == pytest.approx(0.25)
+    assert not budget.finished(10**6, seconds=119.9) and budget.finished(10, seconds=120.0)
+    assert budget.lr_factor(10**6, seconds=500.0) == pytest.approx(0.1)  # past the end: a tenth, no further
+    both = TrainingBudget(steps=100, minutes=2.0)
+    assert both.finished(100, seconds=1.0) and both.progress(50, seconds=90.0) == pytest.approx(0.75)  # first wins
+    with pytest.raises(ValueError, match="minutes"):
+        TrainingBudget(steps=10, minutes=-1.0)
+
+
+def test_minutes_end_a_training_by_its_clock_and_record_the_curve(tmp_path):
+    output = train(small_config(tmp_path, steps=None, minutes=0.03, save_every=20))
+    payload = read_checkpoint(output)
+    record = payload["train"]
+    assert record["finished"] and 1.8 <= record["seconds"] < 30  # 0.03 min = 1.8 s, and it stopped
+    assert record["step"] > 0 and record["minutes"] == 0.03
+    history = payload["history"]
+    assert history and history[-1]["step"] == record["step"]  # the last point is the final save
+    assert [point["step"] for point in history] == sorted(point["step"] for point in history)
+    assert all(point["cpu_seconds"] > 0 and "tip_error_median" in point for point in history)
+
+
+def test_options_left_out_come_from_the_arms_recipe():
+    planar = with_arm_defaults(TrainConfig())
+    assert (planar.timesteps, planar.prediction, planar.hidden, planar.steps) == (80, "sample", 128, 20_000)
+    robot_cpu = with_arm_defaults(TrainConfig(robot="spatial2"))
+    assert (robot_cpu.timesteps, robot_cpu.prediction, robot_cpu.schedule) == (100, "epsilon", "cosine")
+    assert (robot_cpu.hidden, robot_cpu.batch, robot_cpu.tip_loss_weight) == (256, 1024, 0.0)
+    robot_gpu = with_arm_defaults(TrainConfig(robot="spatial2", device="cuda:1"))
+    assert (robot_gpu.hidden, robot_gpu.batch) == (512, 8192)
+    given = with_arm_defaults(TrainConfig(robot="spatial2", hidden=64, schedule="karras"))
+    assert (given.hidden, given.schedule, given.blocks) == (64, "karras", 4)  # what is given wins
+    assert with_arm_defaults(TrainConfig(minutes=5.0)).steps > 10**9  # the clock alone ends it
+    filled = with_arm_defaults(TrainConfig(robot="spatial2"))
+    assert all(getattr(filled, name) is not None for name in RECIPE_FIELDS)
+
+
+def test_the_checkpoint_records_every_value_used_and_the_recipe(tmp_path):
+    config = replace(small_config(tmp_path), robot="spatial1", target="position", hidden=None, blocks=None, batch=None)
+    config = replace(config, steps=2, prediction=None, schedule=None, ema=None)
+    record = read_checkpoint(train(config))["train"]
+    assert record["recipe"] == "robot, CPU"
+    assert (record["hidden"], record["blocks"], record["batch"]) == (256, 4, 1024)
+    assert (record["prediction"], record["schedule"], record["ema"]) == ("epsilon", "cosine", 0.999)
+    assert all(record[name] is not None for name in RECIPE_FIELDS)
 
 
 def test_cli_bad_option_exits_with_a_message(tmp_path):

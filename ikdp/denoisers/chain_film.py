@@ -22,7 +22,7 @@ from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks
 from ikdp.refine import dls_step
-from ikdp.representation import AngleRepresentation
+from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the arm's span
 MISS_SCALE = 10.0  # the position miss in tenths of the span: the last steps correct millimetres
@@ -31,10 +31,8 @@ MISS_SCALE = 10.0  # the position miss in tenths of the span: the last steps cor
 class ChainFiLMDenoiser(nn.Module):
     def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
         super().__init__()
-        if representation.kind != "limits":
-            raise ValueError(
-                f"denoiser 'chain_film': expected the 'limits' representation, got {representation.kind!r}"
-            )
+        if representation.kind not in SCALED_BY_LIMITS:
+            raise ValueError(f"denoiser 'chain_film': expected one of {SCALED_BY_LIMITS}, got {representation.kind!r}")
         self.config = config
         self.arm = arm
         self.representation = representation

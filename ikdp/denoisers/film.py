@@ -28,7 +28,7 @@ from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.denoisers.film_compiled import CompiledFiLMWorkspace, compiled_workspace
 from ikdp.denoisers.film_trunk import condition_network
 from ikdp.refine import planar_dls_step
-from ikdp.representation import AngleRepresentation
+from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the reach
 
@@ -36,7 +36,7 @@ DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the reach
 class FiLMDenoiser(nn.Module):
     def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
         super().__init__()
-        if arm.kind != "planar" or representation.kind == "limits":
+        if arm.kind != "planar" or representation.kind in SCALED_BY_LIMITS:
             raise ValueError(f"denoiser 'film': its features are a planar arm's; got a {arm.kind} arm, use 'mlp'")
         self.config = config
         self.representation = representation

@@ -1,0 +1,102 @@
+"""The defaults a training takes from its arm: what the command line leaves out comes from a recipe.
+
+A planar arm keeps the recipe its models were trained with. A robot (`--robot`, `--urdf`) takes the robot
+recipe for the device: on a GPU the Panda's (ε-prediction, cosine schedule, plain MSE, width 512, batch 8192:
+docs/ROBOTS.md "The tail"); on a CPU a smaller network and batch, which reach a usable model in minutes of
+one thread (docs/ROBOTS.md, "Any robot a user brings", measured there). Every value the run used, given or
+taken from a recipe, is written into the checkpoint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """Training values that depend on the arm and the device; each field is also a TrainConfig option."""
+
+    name: str  # how --help and the checkpoint name it
+    timesteps: int  # diffusion steps T
+    schedule: str  # noise schedule
+    prediction: str  # sample (x_0) or epsilon
+    hidden: int  # denoiser width
+    blocks: int  # residual blocks
+    ema: float  # weight averaging decay (0: none)
+    tip_loss_weight: float  # FK-consistency term
+    snr_gamma: float  # Min-SNR weighting (0: uniform over t)
+    steps: int  # optimizer steps when no --minutes is given
+    batch: int  # poses per step
+    lr: float  # peak learning rate
+    warmup: int  # warm-up steps
+
+
+PLANAR = Recipe(
+    name="planar",
+    timesteps=80,
+    schedule="linear",
+    prediction="sample",
+    hidden=128,
+    blocks=3,
+    ema=0.0,
+    tip_loss_weight=100.0,
+    snr_gamma=5.0,
+    steps=20_000,
+    batch=1024,
+    lr=1e-3,
+    warmup=500,
+)
+ROBOT_GPU = Recipe(
+    name="robot, GPU",
+    timesteps=100,
+    schedule="cosine",
+    prediction="epsilon",
+    hidden=512,
+    blocks=4,
+    ema=0.999,
+    tip_loss_weight=0.0,
+    snr_gamma=0.0,
+    steps=12_000,
+    batch=8192,
+    lr=1e-3,
+    warmup=300,
+)
+ROBOT_CPU = Recipe(
+    name="robot, CPU",
+    timesteps=100,
+    schedule="cosine",
+    prediction="epsilon",
+    hidden=256,
+    blocks=4,
+    ema=0.999,
+    tip_loss_weight=0.0,
+    snr_gamma=0.0,
+    steps=20_000,
+    batch=1024,
+    lr=1e-3,
+    warmup=300,
+)
+
+RECIPE_FIELDS = tuple(field.name for field in fields(Recipe) if field.name != "name")
+
+
+def recipe_for(*, robot: bool, device_type: str) -> Recipe:
+    """The recipe of an arm: planar, or a robot's for the device ("cuda" or anything else, a CPU)."""
+    if not robot:
+        return PLANAR
+    return ROBOT_GPU if device_type == "cuda" else ROBOT_CPU
+
+
+def recipes_help() -> str:
+    """A table of the recipes for --help: one line per option, its value per recipe."""
+    recipes = (PLANAR, ROBOT_CPU, ROBOT_GPU)
+    lines = ["Options left out (None) take the arm's recipe: " + " | ".join(recipe.name for recipe in recipes)]
+    width = max(len(name) for name in RECIPE_FIELDS)
+    for name in RECIPE_FIELDS:
+        values = " | ".join(shown(getattr(recipe, name)) for recipe in recipes)
+        lines.append(f"  {name.replace('_', '-'):<{width}}  {values}")
+    return "\n".join(lines)
+
+
+def shown(value) -> str:
+    return value if isinstance(value, str) else f"{value:g}"
