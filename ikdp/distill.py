@@ -40,6 +40,7 @@ from ikdp.model import IKDiffusion
 from ikdp.priors import PosePrior
 from ikdp.samplers import DDIMSampler, make_sampler
 from ikdp.solver import load, model_from_checkpoint
+from ikdp.train_budget import TrainingBudget
 
 
 @dataclass(frozen=True)
@@ -71,33 +72,15 @@ class DistillConfig:
 def validate(config: DistillConfig) -> None:
     """ValueError naming the option when a value cannot distil."""
     positive = {"student_steps": config.student_steps, "teacher_steps": config.teacher_steps}
-    positive |= {"steps": config.steps, "batch": config.batch, "lr": config.lr, "save_every": config.save_every}
+    positive |= {"batch": config.batch, "lr": config.lr, "save_every": config.save_every}  # steps: TrainingBudget
     for name, value in positive.items():
         if not value > 0:
             raise ValueError(f"{name}: got {value}, expected a positive number")
-    nonnegative = {"minutes": config.minutes, "warmup": config.warmup, "threads": config.threads}
-    nonnegative |= {"eval_targets": config.eval_targets, "tip_loss_weight": config.tip_loss_weight}
+    nonnegative = {"threads": config.threads, "eval_targets": config.eval_targets}
+    nonnegative |= {"tip_loss_weight": config.tip_loss_weight}
     for name, value in nonnegative.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
-
-
-# The run's length and learning rate, each in one function (ikdp.train_budget's TrainingBudget, once on main,
-# takes their place): over whichever of steps and minutes ends first.
-def run_progress(config: DistillConfig, step: int, seconds: float) -> float:
-    """How far the run is, in [0, 1]: the larger of its share of steps and of minutes."""
-    by_steps = step / config.steps
-    by_time = seconds / (60 * config.minutes) if config.minutes else 0.0
-    return min(1.0, max(by_steps, by_time))
-
-
-def lr_factor(config: DistillConfig, step: int, seconds: float) -> float:
-    """Linear warm-up over `warmup` steps, then cosine from 1 down to a tenth at the end of the run."""
-    if step < config.warmup:
-        return (step + 1) / config.warmup
-    warm = min(config.warmup / config.steps, 0.5)  # the cosine runs over what is left after the warm-up
-    after = max(0.0, run_progress(config, step, seconds) - warm) / (1 - warm)
-    return 0.1 + 0.45 * (1 + math.cos(math.pi * after))
 
 
 def student_sampler(model: IKDiffusion, config: DistillConfig) -> DDIMSampler:
@@ -172,6 +155,7 @@ def log_folder(config: DistillConfig) -> Path:
 def distill(config: DistillConfig, command: str = "") -> Path:
     """Train the student and return its checkpoint's path."""
     validate(config)
+    budget = TrainingBudget(config.steps, config.minutes, config.warmup)  # ValueError naming a bad one
     if config.threads:
         torch.set_num_threads(config.threads)
     device = torch.device(config.device)
@@ -243,9 +227,9 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     progress = tqdm(total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True)
     student.train()
     try:
-        while step < config.steps and run_progress(config, step, elapsed()) < 1:
+        while not budget.finished(step, elapsed()):
             for group in optimizer.param_groups:
-                group["lr"] = config.lr * lr_factor(config, step, elapsed())
+                group["lr"] = config.lr * budget.lr_factor(step, elapsed())
             joints = prior.sample(config.batch, arm, generator=data_generator)  # (B, J)
             noise = torch.randn((config.batch, student.representation.dim), generator=data_generator)  # x_T (B, D)
             joints, noise = joints.to(device), noise.to(device)
