@@ -30,6 +30,7 @@ class Sampler:
     name: ClassVar[str]
     supports_steps: ClassVar[bool]  # False: the method always runs all T steps
     deterministic: ClassVar[bool]  # True: no noise is drawn after the initial x_T
+    _noise: torch.Tensor | None = None  # stochastic samplers: the buffer each step's noise is drawn into
 
     def __init__(
         self,
@@ -62,6 +63,16 @@ class Sampler:
 
     def reset(self) -> None:
         """Forget the history of a previous run (multistep samplers keep one)."""
+
+    def _add_noise(self, out: torch.Tensor, scale: float, generator: torch.Generator | None) -> torch.Tensor:
+        """out += scale z, z ~ N(0, I) drawn into a buffer kept between steps; nothing drawn when scale is 0."""
+        if scale > 0:
+            noise = self._noise
+            if noise is None or noise.shape != out.shape or noise.device != out.device:
+                noise = self._noise = torch.empty_like(out)
+            torch.randn(out.shape, generator=generator, out=noise)
+            out.add_(noise, alpha=scale)
+        return out
 
     def step(
         self,
@@ -110,7 +121,6 @@ class DDPMSampler(Sampler):
         self.coef_clean = [floats["posterior_mean_coef_clean"][t] for t in self.timesteps]
         self.coef_noisy = [floats["posterior_mean_coef_noisy"][t] for t in self.timesteps]
         self.noise_scale = [math.sqrt(floats["posterior_variance"][t]) if t > 0 else 0.0 for t in self.timesteps]
-        self._noise: torch.Tensor | None = None
 
     def default_timesteps(self, schedule: DiffusionSchedule, steps: int | None) -> list[int]:
         return list(range(schedule.num_timesteps - 1, -1, -1))
@@ -120,12 +130,7 @@ class DDPMSampler(Sampler):
         torch.mul(clean, self.coef_clean[index], out=out)
         out.add_(sample, alpha=self.coef_noisy[index])
         # 2. plus sigma_t z, z ~ N(0, I); none at the last step (t = 0)
-        if self.noise_scale[index] > 0:
-            if self._noise is None or self._noise.shape != sample.shape or self._noise.device != sample.device:
-                self._noise = torch.empty_like(sample)
-            torch.randn(sample.shape, generator=generator, out=self._noise)
-            out.add_(self._noise, alpha=self.noise_scale[index])
-        return out
+        return self._add_noise(out, self.noise_scale[index], generator)
 
 
 class DDIMSampler(Sampler):
@@ -162,6 +167,49 @@ class DDIMSampler(Sampler):
     def update(self, index: int, sample: torch.Tensor, clean: torch.Tensor) -> torch.Tensor:
         """step()'s x_next as a new tensor that keeps the graph: ikdp.distill trains a student through it."""
         return self.coef_clean[index] * clean + self.coef_noisy[index] * sample
+
+
+class AncestralSampler(Sampler):
+    """DDPM's ancestral update on any number of strided steps: x_prev ~ q(x_prev | x_t, x̂0).
+
+    The posterior between two timesteps t > t' (Ho et al. 2020, eq. 6-7, with abar_t / abar_t' for
+    alpha_t) is DDIM's update with eta = 1 (Song et al. 2021, eq. 12, 16):
+        x_prev = a' x̂0 + sqrt(s'^2 - v) eps + sqrt(v) z,  eps = (x_t - a x̂0) / s,
+        v = (s'^2 / s^2) (1 - a^2 / a'^2),   a = sqrt(abar), s = sqrt(1 - abar).
+    On all T steps it is the DDPM's own update; on a few, packed near t = 0, it keeps the stochastic
+    sampler's small tail where the deterministic ones lose it (docs/BENCHMARKS.md, few-step sampling).
+    """
+
+    name = "ancestral"
+    supports_steps = True
+    deterministic = False
+
+    def __init__(
+        self,
+        schedule: DiffusionSchedule,
+        steps: int | None = None,
+        *,
+        timesteps: list[int] | None = None,
+        spacing: str = "uniform",
+    ):
+        super().__init__(schedule, steps, timesteps=timesteps, spacing=spacing)
+        self.coef_noisy, self.coef_clean, self.noise_scale = [], [], []
+        for index, t in enumerate(self.timesteps):
+            t_prev = self.previous_timestep(index)
+            alpha, sigma = _alpha(schedule, t), _sigma(schedule, t)
+            alpha_prev, sigma_prev = _alpha(schedule, t_prev), _sigma(schedule, t_prev)
+            variance = (sigma_prev / sigma) ** 2 * (1 - (alpha / alpha_prev) ** 2)
+            direction = math.sqrt(max(sigma_prev**2 - variance, 0.0)) / sigma  # the share of eps kept
+            self.coef_noisy.append(direction)
+            self.coef_clean.append(alpha_prev - direction * alpha)
+            self.noise_scale.append(math.sqrt(variance))
+
+    def step(self, index, sample, clean, *, out, generator=None):
+        # 1. the posterior's mean: x̂0 re-noised to t_prev along part of the implied noise
+        torch.mul(clean, self.coef_clean[index], out=out)
+        out.add_(sample, alpha=self.coef_noisy[index])
+        # 2. plus its standard deviation times z ~ N(0, I); none on the last step (t_prev = -1)
+        return self._add_noise(out, self.noise_scale[index], generator)
 
 
 class DPMSolverPP2MSampler(Sampler):
@@ -232,7 +280,9 @@ class DPMSolverPP2MSampler(Sampler):
         return out
 
 
-SAMPLERS: dict[str, type[Sampler]] = {cls.name: cls for cls in (DDPMSampler, DDIMSampler, DPMSolverPP2MSampler)}
+SAMPLERS: dict[str, type[Sampler]] = {
+    cls.name: cls for cls in (DDPMSampler, DDIMSampler, DPMSolverPP2MSampler, AncestralSampler)
+}
 
 
 def sampler_names() -> tuple[str, ...]:

@@ -6,7 +6,15 @@ import pytest
 import torch
 
 import ikdp
-from ikdp.samplers import SAMPLERS, DDIMSampler, DDPMSampler, DPMSolverPP2MSampler, make_sampler, sampler_names
+from ikdp.samplers import (
+    SAMPLERS,
+    AncestralSampler,
+    DDIMSampler,
+    DDPMSampler,
+    DPMSolverPP2MSampler,
+    make_sampler,
+    sampler_names,
+)
 from ikdp.sampling import step_conditions
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig, make_betas
 
@@ -20,10 +28,12 @@ def step(sampler, index, sample, clean, generator=None):
 
 
 def test_registry_names_and_bad_names():
-    assert sampler_names() == ("ddpm", "ddim", "dpmpp2m")
+    assert sampler_names() == ("ddpm", "ddim", "dpmpp2m", "ancestral")
     assert not SAMPLERS["ddpm"].supports_steps and SAMPLERS["ddim"].supports_steps
     schedule = DiffusionSchedule()
-    with pytest.raises(ValueError, match=r"sampler: expected one of \('ddpm', 'ddim', 'dpmpp2m'\), got 'heun'"):
+    with pytest.raises(
+        ValueError, match=r"sampler: expected one of \('ddpm', 'ddim', 'dpmpp2m', 'ancestral'\), got 'heun'"
+    ):
         make_sampler("heun", schedule)
     with pytest.raises(ValueError, match="steps: DDPM runs all 80 steps"):
         make_sampler("ddpm", schedule, 10)
@@ -35,7 +45,7 @@ def test_registry_names_and_bad_names():
         make_sampler("ddim", schedule, 4, spacing="even")
 
 
-@pytest.mark.parametrize("name", ["ddim", "dpmpp2m"])
+@pytest.mark.parametrize("name", ["ddim", "dpmpp2m", "ancestral"])
 def test_spacing_chooses_the_grid_and_the_coefficients_follow(name):
     schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="cosine"))
     packed = make_sampler(name, schedule, 4, spacing="quadratic")
@@ -131,6 +141,40 @@ def test_ddim_matches_diffusers_step_for_step(steps):
 
 
 @pytest.mark.parametrize("steps", [5, 10, 20])
+def test_ancestral_matches_diffusers_ddim_with_eta_one_step_for_step(steps):
+    schedule = DiffusionSchedule()
+    theirs = diffusers.DDIMScheduler(
+        **diffusers_kwargs(schedule),
+        clip_sample=False,
+        prediction_type="sample",
+        set_alpha_to_one=True,
+        timestep_spacing="trailing",
+    )
+    same_alphas(theirs, schedule)
+    theirs.set_timesteps(steps)
+    ours = AncestralSampler(schedule, timesteps=theirs.timesteps.tolist())
+    data = torch.Generator().manual_seed(2)
+    x = torch.randn((8, 6), generator=data)
+    for index, t in enumerate(ours.timesteps):
+        clean = torch.randn((8, 6), generator=data)
+        noise = torch.randn((8, 6), generator=torch.Generator().manual_seed(index))
+        expected = theirs.step(clean.double(), t, x.double(), eta=1.0, variance_noise=noise.double()).prev_sample
+        x = step(ours, index, x, clean, torch.Generator().manual_seed(index))
+        torch.testing.assert_close(x, expected.float(), atol=1e-5, rtol=0)
+
+
+def test_ancestral_on_every_step_is_the_ddpm():
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="cosine"))
+    strided, every = AncestralSampler(schedule), DDPMSampler(schedule)
+    # the same posterior q(x_{t-1} | x_t, x0); the two compute it from float32 constants by different routes
+    for ours, ddpm in (("coef_clean", "coef_clean"), ("coef_noisy", "coef_noisy"), ("noise_scale", "noise_scale")):
+        torch.testing.assert_close(
+            torch.tensor(getattr(strided, ours)), torch.tensor(getattr(every, ddpm)), atol=1e-4, rtol=0
+        )
+    assert make_sampler("ancestral", schedule, 4, spacing="quadratic").timesteps == [99, 44, 11, 0]
+
+
+@pytest.mark.parametrize("steps", [5, 10, 20])
 @pytest.mark.parametrize("kind", ["linear", "cosine"])
 def test_dpmpp2m_matches_diffusers_step_for_step(steps, kind):
     schedule = DiffusionSchedule(ScheduleConfig(kind=kind))
@@ -175,7 +219,7 @@ def reference_loop(solver, targets, sampler_name, steps, num_samples, seed):
     return model.representation.decode(torch.stack(states)).unflatten(1, (len(targets), num_samples))
 
 
-@pytest.mark.parametrize("sampler, steps", [("ddpm", None), ("ddim", 7), ("dpmpp2m", 6)])
+@pytest.mark.parametrize("sampler, steps", [("ddpm", None), ("ddim", 7), ("dpmpp2m", 6), ("ancestral", 5)])
 def test_fast_loop_is_bit_identical_to_the_reference(tiny_checkpoint, sampler, steps, monkeypatch):
     # the loop's own buffers change nothing; the compiled step's rounding is tests/test_film_compiled.py's
     monkeypatch.setattr("ikdp.denoisers.film.compiled_workspace", lambda *args: None)
