@@ -1,10 +1,10 @@
 """Few-step sampling (issue 27): raw accuracy and diversity per network evaluation, by timestep grid.
 
-    OMP_NUM_THREADS=1 python benchmarks/few_step.py --checkpoints ikdp_panda ikdp_panda_cpu ikdp_n4
-    OMP_NUM_THREADS=1 python benchmarks/few_step.py --checkpoints runs/n4_student.pt --samplers ddim:2 ddpm
+    OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda ikdp_panda_cpu ikdp_n4
+    OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints runs/n4_student.pt --samplers ddpm ddim:2
 
-For each model and each sampler `name:steps` (DDIM and DPM-Solver++(2M) at 2, 4, 8 and 16 network
-evaluations by default), once per timestep spacing (`uniform`, the registry's evenly spaced grid, and
+For each model and each sampler `name:steps` (DDIM, DPM-Solver++(2M) and the strided ancestral DDPM at
+2, 4, 8 and 16 network evaluations by default), once per timestep spacing (`uniform`, evenly spaced, and
 `quadratic`, packed near t = 0):
 1. raw accuracy, K = 1: a robot's `targets` held-out pose targets as benchmarks/robot_benchmark.py draws
    them (FK of joint values uniform within the limits, seed 0): position mm and rotation degrees, median
@@ -31,7 +31,7 @@ from benchmarks.robot_benchmark import parse_sampler
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step.json"
-FEW_STEP_SAMPLERS = tuple(f"{name}:{steps}" for name in ("ddim", "dpmpp2m") for steps in (2, 4, 8, 16))
+FEW_STEP_SAMPLERS = tuple(f"{name}:{steps}" for name in ("ddim", "dpmpp2m", "ancestral") for steps in (2, 4, 8, 16))
 
 
 @dataclass(frozen=True)

@@ -77,9 +77,11 @@ def describe(paths: list[str]) -> str:
     for path in paths:
         payload = read_checkpoint(path)
         model, train, metrics = payload["model"], payload["train"], payload["metrics"]
+        teacher_train = (payload.get("distill") or {}).get("teacher_train")  # a student's robot is its teacher's
+        arm = arm_text(model, teacher_train or train)
         minutes = float(train.get("seconds", 0)) / 60
         rows.append(
-            f"| `{path}` | {arm_text(model, train)} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
+            f"| `{path}` | {arm} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
             f"| {model['representation']} | {payload['prior']['kind']} | {train.get('step')} "
             f"| {minutes:.1f} min ({train.get('threads')} thread) | {accuracy_text(model, metrics)} |"
         )

@@ -5,6 +5,7 @@ import torch
 
 import ikdp
 from ikdp.checkpoint import read_checkpoint
+from ikdp.describe import describe
 from ikdp.distill import DistillConfig, distill, main, student_sampler, unrolled_student
 
 
@@ -62,6 +63,13 @@ def test_a_student_saves_resumes_and_solves_in_its_own_steps(tiny_checkpoint, tm
     assert out.network_evaluations == 2 and out.timesteps == [19, 0]
     # its own (sampler, steps) take its grid; other solves keep the planar default
     assert student.default_spacing("ddim", 2) == "quadratic" and student.default_spacing("ddim", 4) == "uniform"
+
+
+def test_describe_prints_a_students_command_and_its_teachers_arm(tiny_checkpoint, tmp_path):
+    config = small_config(tmp_path, tiny_checkpoint, steps=1, eval_targets=0)
+    path = distill(config, command="python -m ikdp.distill --steps 1")
+    text = describe([str(path)])
+    assert "`python -m ikdp.distill --steps 1`" in text and "planar, 3 links" in text
 
 
 def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
