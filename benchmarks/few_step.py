@@ -18,7 +18,6 @@ benchmarks/results/few_step.json.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -27,7 +26,7 @@ import torch
 import tyro
 
 import ikdp
-from benchmarks.robot_benchmark import parse_sampler
+from benchmarks.robot_benchmark import parse_sampler, write
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step.json"
@@ -134,9 +133,7 @@ def main(config: FewStepConfig) -> dict:
         models[checkpoint] = {"path": solver.metadata["path"], "rows": measure(solver, config)}
         print_rows(checkpoint, models[checkpoint]["rows"])
     results["models"] = models
-    config.output.parent.mkdir(parents=True, exist_ok=True)
-    config.output.write_text(json.dumps(results, indent=2))
-    print(f"wrote {config.output}")
+    write(results, config.output)
     return results
 
 

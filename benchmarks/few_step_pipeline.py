@@ -12,7 +12,6 @@ is solved when one of its poses is within 1 mm and 1 degree. For each, the faste
 
 from __future__ import annotations
 
-import json
 import statistics
 import time
 from dataclasses import asdict, dataclass, field
@@ -22,7 +21,7 @@ import torch
 import tyro
 
 import ikdp
-from benchmarks.robot_benchmark import parse_sampler, pseudo_inverse, verdict
+from benchmarks.robot_benchmark import parse_sampler, pseudo_inverse, verdict, write
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
@@ -124,9 +123,7 @@ def main(config: PipelineConfig) -> dict:
         ratio = f"{model['ratio']:.2f}" if model["ratio"] is not None else "n/a"
         print(f"fastest at >= {100 * config.success:.1f} %: {model['fastest_ikdp']} / {model['fastest_pk']} = {ratio}")
     results["models"] = models
-    config.output.parent.mkdir(parents=True, exist_ok=True)
-    config.output.write_text(json.dumps(results, indent=2))
-    print(f"wrote {config.output}")
+    write(results, config.output)
     return results
 
 

@@ -25,10 +25,9 @@ from __future__ import annotations
 
 import math
 import shlex
-import signal
 import sys
 import time
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal
 
@@ -40,6 +39,7 @@ from ikdp.model import IKDiffusion
 from ikdp.priors import PosePrior
 from ikdp.samplers import DDIMSampler, make_sampler
 from ikdp.solver import load, model_from_checkpoint
+from ikdp.train import parse_config, save_on_interrupt
 from ikdp.train_budget import TrainingBudget
 
 
@@ -265,29 +265,12 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     return output
 
 
-def saved_config(payload: dict) -> DistillConfig:
-    record = payload["train"]
-    return replace(DistillConfig(), **{f.name: record[f.name] for f in fields(DistillConfig) if f.name in record})
-
-
-def parse_config(argv: list[str] | None = None) -> DistillConfig:
-    """The command line as a DistillConfig; with --resume, options not given come from the checkpoint."""
-    import tyro  # imported here: only the command line needs it
-
-    config = tyro.cli(DistillConfig, args=argv, prog="ikdp-distill")
-    output = Path(config.output)
-    if config.resume and output.exists():
-        saved = replace(saved_config(read_checkpoint(output)), output=config.output, resume=True)
-        config = tyro.cli(DistillConfig, args=argv, prog="ikdp-distill", default=saved)
-    return config
-
-
 def main(argv: list[str] | None = None) -> None:
-    signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill saves a checkpoint as Ctrl-C does
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    save_on_interrupt()
     arguments = sys.argv[1:] if argv is None else argv
     try:
-        distill(parse_config(argv), command=shlex.join(["python", "-m", "ikdp.distill", *arguments]))
+        config = parse_config(argv, DistillConfig, "ikdp-distill")  # with --resume, the saved config's defaults
+        distill(config, command=shlex.join(["python", "-m", "ikdp.distill", *arguments]))
     except (ValueError, CheckpointError) as error:
         print(f"ikdp-distill: error: {error}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -25,7 +25,7 @@ from ikdp.schedule import TIMESTEP_SPACINGS, DiffusionSchedule
 
 
 class Sampler:
-    """One reverse-diffusion method. Subclasses set `name`, `supports_steps` and `step`."""
+    """One reverse-diffusion method. Subclasses set `name`, `supports_steps`, `precompute` and `step`."""
 
     name: ClassVar[str]
     supports_steps: ClassVar[bool]  # False: the method always runs all T steps
@@ -49,6 +49,10 @@ class Sampler:
             raise ValueError(f"timesteps: expected values in [0, {schedule.num_timesteps}), got {self.timesteps}")
         if any(later >= earlier for earlier, later in zip(self.timesteps, self.timesteps[1:], strict=False)):
             raise ValueError(f"timesteps: expected strictly decreasing values, got {self.timesteps}")
+        self.precompute(schedule)
+
+    def precompute(self, schedule: DiffusionSchedule) -> None:
+        """Every coefficient the update needs at self.timesteps, as Python floats (subclasses)."""
 
     @property
     def num_steps(self) -> int:
@@ -104,18 +108,7 @@ class DDPMSampler(Sampler):
     supports_steps = False
     deterministic = False
 
-    def __init__(
-        self,
-        schedule: DiffusionSchedule,
-        steps: int | None = None,
-        *,
-        timesteps: list[int] | None = None,
-        spacing: str = "uniform",
-    ):
-        if steps not in (None, schedule.num_timesteps):
-            total = schedule.num_timesteps
-            raise ValueError(f"steps: DDPM runs all {total} steps, got {steps}; use 'ddim' or 'dpmpp2m' for fewer")
-        super().__init__(schedule, None, timesteps=timesteps, spacing=spacing)  # all T steps: every spacing agrees
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         floats = schedule.floats
         # q(x_{t-1} | x_t, x_0) = N(coef_clean x_0 + coef_noisy x_t, sigma_t^2)  (Ho eq. 6-7)
         self.coef_clean = [floats["posterior_mean_coef_clean"][t] for t in self.timesteps]
@@ -123,7 +116,10 @@ class DDPMSampler(Sampler):
         self.noise_scale = [math.sqrt(floats["posterior_variance"][t]) if t > 0 else 0.0 for t in self.timesteps]
 
     def default_timesteps(self, schedule: DiffusionSchedule, steps: int | None) -> list[int]:
-        return list(range(schedule.num_timesteps - 1, -1, -1))
+        if steps not in (None, schedule.num_timesteps):
+            total = schedule.num_timesteps
+            raise ValueError(f"steps: DDPM runs all {total} steps, got {steps}; use 'ddim' or 'dpmpp2m' for fewer")
+        return list(range(schedule.num_timesteps - 1, -1, -1))  # all T steps: every spacing agrees
 
     def step(self, index, sample, clean, *, out, generator=None):
         # 1. the mean of the posterior q(x_{t-1} | x_t, x̂0): a blend of the clean estimate and x_t
@@ -140,15 +136,7 @@ class DDIMSampler(Sampler):
     supports_steps = True
     deterministic = True
 
-    def __init__(
-        self,
-        schedule: DiffusionSchedule,
-        steps: int | None = None,
-        *,
-        timesteps: list[int] | None = None,
-        spacing: str = "uniform",
-    ):
-        super().__init__(schedule, steps, timesteps=timesteps, spacing=spacing)
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         # x_prev = a_prev x̂0 + s_prev eps, eps = (x_t - a_t x̂0) / s_t
         #        = (s_prev / s_t) x_t + (a_prev - s_prev a_t / s_t) x̂0
         self.coef_noisy, self.coef_clean = [], []
@@ -184,15 +172,7 @@ class AncestralSampler(Sampler):
     supports_steps = True
     deterministic = False
 
-    def __init__(
-        self,
-        schedule: DiffusionSchedule,
-        steps: int | None = None,
-        *,
-        timesteps: list[int] | None = None,
-        spacing: str = "uniform",
-    ):
-        super().__init__(schedule, steps, timesteps=timesteps, spacing=spacing)
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         self.coef_noisy, self.coef_clean, self.noise_scale = [], [], []
         for index, t in enumerate(self.timesteps):
             t_prev = self.previous_timestep(index)
@@ -225,15 +205,7 @@ class DPMSolverPP2MSampler(Sampler):
     supports_steps = True
     deterministic = True
 
-    def __init__(
-        self,
-        schedule: DiffusionSchedule,
-        steps: int | None = None,
-        *,
-        timesteps: list[int] | None = None,
-        spacing: str = "uniform",
-    ):
-        super().__init__(schedule, steps, timesteps=timesteps, spacing=spacing)
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         self.coef_noisy, self.coef_clean, self.coef_previous = [], [], []
         previous_h = None
         for index, t in enumerate(self.timesteps):

@@ -7,6 +7,7 @@ import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.describe import describe
 from ikdp.distill import DistillConfig, distill, main, student_sampler, unrolled_student
+from ikdp.train import parse_config
 
 
 def small_config(tmp_path, teacher, **changes):
@@ -49,6 +50,9 @@ def test_a_student_saves_resumes_and_solves_in_its_own_steps(tiny_checkpoint, tm
     resumed = distill(small_config(tmp_path / "b", tiny_checkpoint, steps=6, resume=True))
     a, b = (torch.load(path, weights_only=True) for path in (straight, resumed))
     assert b["train"]["step"] == 6
+    # --resume on the command line reads the run's own options back, the ones given override them
+    again = parse_config(["--output", str(resumed), "--resume", "--steps", "9"], DistillConfig, "ikdp-distill")
+    assert (again.teacher_steps, again.batch, again.steps) == (4, 16, 9)
     for name, value in a["state_dict"].items():
         torch.testing.assert_close(b["state_dict"][name], value, rtol=0, atol=0)
     teacher = torch.load(tiny_checkpoint, weights_only=True)["state_dict"]
