@@ -53,7 +53,7 @@ class DistillConfig:
     teacher_sampler: Literal["ddim", "dpmpp2m"] = "dpmpp2m"  # the teacher's deterministic sampler
     teacher_steps: int = 16  # its steps
     teacher_spacing: Literal["uniform", "quadratic"] = "quadratic"  # its grid
-    tip_loss_weight: float = 100.0  # weight of the FK miss of the student's pose (model.consistency_miss)
+    tip_loss_weight: float = 2000.0  # weight of the FK miss of the student's pose (ikdp_n4_2step's; at 100 it lost)
     steps: int = 2000  # optimizer steps (the run ends at this or at --minutes, whichever comes first)
     minutes: float = 0.0  # wall-clock budget of the whole run, resumes included (0: none)
     batch: int = 256  # poses per step
