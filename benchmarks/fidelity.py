@@ -36,6 +36,7 @@ class FidelityConfig:
     checkpoints: tuple[str, ...] = ("ikdp_n4_relaxed",)  # paths or shipped names; one arm and prior for all
     sampler: str = "ddpm"  # the raw sampler measured
     steps: int | None = None  # its steps (None: the sampler's default)
+    spacing: str | None = None  # its timestep grid, uniform or quadratic (None: the model's default)
     targets: int = 96  # fidelity targets drawn from the prior
     samples: int = 128  # K per target, and the size of each reference set
     reference_radius: float = 0.02  # rejection radius, as a fraction of the reach
@@ -81,6 +82,7 @@ def main(config: FidelityConfig) -> dict:
             num_samples=config.samples,
             sampler=config.sampler,
             steps=config.steps,
+            spacing=config.spacing,
             generator=torch.Generator().manual_seed(config.seed + 2),
         )
         excess = float(mmd2(out.raw_angles, reference_a).mean()) - floor
@@ -89,6 +91,7 @@ def main(config: FidelityConfig) -> dict:
             num_samples=1,
             sampler=config.sampler,
             steps=config.steps,
+            spacing=config.spacing,
             generator=torch.Generator().manual_seed(config.seed + 3),
         )
         rows[name] = {

@@ -97,25 +97,30 @@ def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
     }
 
 
-def run_pytorch_kinematics(arm, targets: torch.Tensor, config: RobotBenchmarkConfig) -> dict:
+def pseudo_inverse(arm, targets: torch.Tensor, retries: int, iterations: int, seed: int):
+    """PseudoInverseIK for pose targets (B, 7), built once: a call returns its solutions, (B, retries, J)."""
     import pytorch_kinematics as pk
 
     chain = pk.build_serial_chain_from_urdf(Path(arm.urdf_path).read_bytes(), arm.ee_link)
     limits = arm.joint_limits
-    retry = torch.rand(config.pk_retries, arm.num_joints, generator=torch.Generator().manual_seed(config.seed + 9))
+    retry = torch.rand(retries, arm.num_joints, generator=torch.Generator().manual_seed(seed + 9))
     retry = limits[:, 0] + retry * (limits[:, 1] - limits[:, 0])
     solver = pk.PseudoInverseIK(
         chain,
         retry_configs=retry,
         joint_limits=limits,
-        max_iterations=config.pk_iterations,
+        max_iterations=iterations,
         pos_tolerance=1e-3,
         rot_tolerance=math.radians(1),
         early_stopping_any_converged=True,
     )
     goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:])  # pk's quaternions are (w, x, y, z) too
-    seconds, solution = median_seconds(lambda: solver.solve(goal), config.repeats)
-    joints = solution.solutions.detach().float()  # (B, R, J)
+    return lambda: solver.solve(goal).solutions.detach().float()
+
+
+def run_pytorch_kinematics(arm, targets: torch.Tensor, config: RobotBenchmarkConfig) -> dict:
+    solve = pseudo_inverse(arm, targets, config.pk_retries, config.pk_iterations, config.seed)
+    seconds, joints = median_seconds(solve, config.repeats)  # (B, R, J)
     return {"seconds_per_target": seconds / len(targets), **verdict(arm, joints, targets)}
 
 

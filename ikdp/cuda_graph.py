@@ -24,7 +24,16 @@ from ikdp.sampling import Trajectory, run_reverse_diffusion, step_conditions
 class CapturedReverseDiffusion:
     """One shape's reverse loop as a CUDA graph: static target and condition buffers in, a Trajectory out."""
 
-    def __init__(self, model, *, batch: int, num_samples: int, sampler: str = "ddpm", steps: int | None = None):
+    def __init__(
+        self,
+        model,
+        *,
+        batch: int,
+        num_samples: int,
+        sampler: str = "ddpm",
+        steps: int | None = None,
+        spacing: str = "uniform",
+    ):
         device = next(model.parameters()).device
         if device.type != "cuda":
             raise ValueError(f"model: expected a model on a CUDA device, got one on {device}")
@@ -33,7 +42,7 @@ class CapturedReverseDiffusion:
         self.model = model
         self.num_samples = num_samples
         # a sampler of its own: its noise buffers live in the graph's memory, not in the model's shared cache
-        self.sampler = make_sampler(sampler, model.schedule, steps)
+        self.sampler = make_sampler(sampler, model.schedule, steps, spacing)
         self.targets = torch.zeros((batch, model.arm.target_dim), device=device)
         self.conditions = self._conditions(self.targets)
         self.generator = torch.Generator(device=device)

@@ -23,7 +23,9 @@ MACHINE_OPTIONS = {"resume"}  # how a run was continued, not what it trained
 
 
 def training_command(train: dict) -> str:
-    """The `python -m ikdp.train ...` command that reproduces a saved training config."""
+    """The `python -m ikdp.train ...` command that reproduces a saved training config (a student: its own)."""
+    if train.get("command"):  # ikdp.distill records the command it ran
+        return train["command"]
     parts = ["python -m ikdp.train"]
     for field in fields(TrainConfig):
         if field.name in NOT_OPTIONS or field.name in MACHINE_OPTIONS or field.name not in train:
@@ -75,9 +77,11 @@ def describe(paths: list[str]) -> str:
     for path in paths:
         payload = read_checkpoint(path)
         model, train, metrics = payload["model"], payload["train"], payload["metrics"]
+        teacher_train = (payload.get("distill") or {}).get("teacher_train")  # a student's robot is its teacher's
+        arm = arm_text(model, teacher_train or train)
         minutes = float(train.get("seconds", 0)) / 60
         rows.append(
-            f"| `{path}` | {arm_text(model, train)} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
+            f"| `{path}` | {arm} | {model['schedule']['timesteps']} | {model['denoiser']['kind']} "
             f"| {model['representation']} | {payload['prior']['kind']} | {train.get('step')} "
             f"| {minutes:.1f} min ({train.get('threads')} thread) | {accuracy_text(model, metrics)} |"
         )

@@ -77,7 +77,7 @@ class IKDiffusion(nn.Module):
         )
         self.schedule = DiffusionSchedule(config.schedule)
         self.denoiser = build_denoiser(config.denoiser, self.representation, self.arm)
-        self._samplers: dict[tuple[str, int | None], Sampler] = {}
+        self._samplers: dict[tuple[str, int | None, str], Sampler] = {}
 
     def compute_loss(
         self,
@@ -119,6 +119,25 @@ class IKDiffusion(nn.Module):
         if snr_gamma > 0:
             snr = (alpha / sigma).squeeze(-1) ** 2
             weight = snr.clamp(max=snr_gamma) / snr_gamma
+        consistency, tip_miss = self.consistency_miss(predicted_clean, joints, targets)
+        per_sample = squared_error.mean(-1) + tip_loss_weight * consistency
+        loss = (weight * per_sample).mean()
+        return {
+            "loss": loss,
+            "theta_loss": squared_error.mean().detach(),
+            "tip_distance": tip_miss.detach().sqrt().mean(),
+        }
+
+    def consistency_miss(
+        self, predicted_clean: torch.Tensor, joints: torch.Tensor, targets: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The FK-consistency term of a clean estimate (B, D) of poses `joints` (B, J) reaching `targets`.
+
+        Returns (consistency, tip_miss), both (B,): the squared tip miss over the arm's span squared, plus
+        for pose targets the rotation's squared Frobenius miss scaled by ROTATION_LOSS_SCALE; and the
+        squared tip miss alone.
+        """
+        arm = self.arm
         # past a limit, a clamped joint would give the FK term no gradient to bring it back
         predicted_joints = self.representation.decode(
             predicted_clean, clamp=not self.config.denoiser.kinematics_past_limits
@@ -129,22 +148,15 @@ class IKDiffusion(nn.Module):
             rotation_miss = ((predicted_rotation - true_rotation) ** 2).sum(dim=(-1, -2))  # ~ 2 angle^2
         else:
             predicted_tip = arm.end_effector(predicted_joints)[..., : arm.position_dim]
-            rotation_miss = torch.zeros(batch, device=device)
+            rotation_miss = torch.zeros(joints.shape[0], device=joints.device)
         tip_miss = ((predicted_tip - targets[..., : arm.position_dim]) ** 2).sum(-1)  # (B,)
-        consistency = tip_miss / arm.span**2 + ROTATION_LOSS_SCALE * rotation_miss
-        per_sample = squared_error.mean(-1) + tip_loss_weight * consistency
-        loss = (weight * per_sample).mean()
-        return {
-            "loss": loss,
-            "theta_loss": squared_error.mean().detach(),
-            "tip_distance": tip_miss.detach().sqrt().mean(),
-        }
+        return tip_miss / arm.span**2 + ROTATION_LOSS_SCALE * rotation_miss, tip_miss
 
-    def sampler(self, name: str = "ddpm", steps: int | None = None) -> Sampler:
+    def sampler(self, name: str = "ddpm", steps: int | None = None, spacing: str = "uniform") -> Sampler:
         """The sampler `name` with `steps` steps, built once per model: its coefficients depend on the schedule only."""
-        key = (name, steps)
+        key = (name, steps, spacing)
         if key not in self._samplers:
-            self._samplers[key] = make_sampler(name, self.schedule, steps)
+            self._samplers[key] = make_sampler(name, self.schedule, steps, spacing)
         return self._samplers[key]
 
     @torch.inference_mode()
@@ -155,6 +167,7 @@ class IKDiffusion(nn.Module):
         num_samples: int = 1,
         sampler: str = "ddpm",
         steps: int | None = None,
+        spacing: str = "uniform",
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
         return_estimates: bool = False,
@@ -170,7 +183,7 @@ class IKDiffusion(nn.Module):
             self.denoiser,
             self.schedule,
             self.representation,
-            self.sampler(sampler, steps),
+            self.sampler(sampler, steps, spacing),
             targets,
             num_samples=num_samples,
             prediction=self.config.prediction,

@@ -7,7 +7,8 @@ denoiser's clean estimate x̂0 into a buffer it is given, so the loop allocates
 nothing per step. Timesteps are 0-based indices, noisiest first; after the last
 listed timestep every sampler lands on the clean end (alpha_cumprod = 1).
 
-    sampler = make_sampler("dpmpp2m", schedule, steps=10)
+    sampler = make_sampler("dpmpp2m", schedule, steps=10)               # evenly spaced timesteps
+    sampler = make_sampler("dpmpp2m", schedule, 8, spacing="quadratic")  # packed near t = 0
     for index, t in enumerate(sampler.timesteps):
         clean = ...                                  # the denoiser's x̂0 at (x, t)
         sampler.step(index, x, clean, out=x_next, generator=generator)
@@ -20,23 +21,38 @@ from typing import ClassVar
 
 import torch
 
-from ikdp.schedule import DiffusionSchedule
+from ikdp.schedule import TIMESTEP_SPACINGS, DiffusionSchedule
 
 
 class Sampler:
-    """One reverse-diffusion method. Subclasses set `name`, `supports_steps` and `step`."""
+    """One reverse-diffusion method. Subclasses set `name`, `supports_steps`, `precompute` and `step`."""
 
     name: ClassVar[str]
     supports_steps: ClassVar[bool]  # False: the method always runs all T steps
     deterministic: ClassVar[bool]  # True: no noise is drawn after the initial x_T
+    _noise: torch.Tensor | None = None  # stochastic samplers: the buffer each step's noise is drawn into
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
+    def __init__(
+        self,
+        schedule: DiffusionSchedule,
+        steps: int | None = None,
+        *,
+        timesteps: list[int] | None = None,
+        spacing: str = "uniform",
+    ):
+        if spacing not in TIMESTEP_SPACINGS:
+            raise ValueError(f"spacing: expected one of {TIMESTEP_SPACINGS}, got {spacing!r}")
         self.schedule = schedule
+        self.spacing = spacing
         self.timesteps = list(timesteps) if timesteps is not None else self.default_timesteps(schedule, steps)
         if not self.timesteps or any(not 0 <= t < schedule.num_timesteps for t in self.timesteps):
             raise ValueError(f"timesteps: expected values in [0, {schedule.num_timesteps}), got {self.timesteps}")
         if any(later >= earlier for earlier, later in zip(self.timesteps, self.timesteps[1:], strict=False)):
             raise ValueError(f"timesteps: expected strictly decreasing values, got {self.timesteps}")
+        self.precompute(schedule)
+
+    def precompute(self, schedule: DiffusionSchedule) -> None:
+        """Every coefficient the update needs at self.timesteps, as Python floats (subclasses)."""
 
     @property
     def num_steps(self) -> int:
@@ -47,10 +63,20 @@ class Sampler:
         return self.timesteps[index + 1] if index + 1 < len(self.timesteps) else -1
 
     def default_timesteps(self, schedule: DiffusionSchedule, steps: int | None) -> list[int]:
-        return schedule.ddim_timesteps(steps)
+        return schedule.timestep_grid(steps, self.spacing)
 
     def reset(self) -> None:
         """Forget the history of a previous run (multistep samplers keep one)."""
+
+    def _add_noise(self, out: torch.Tensor, scale: float, generator: torch.Generator | None) -> torch.Tensor:
+        """out += scale z, z ~ N(0, I) drawn into a buffer kept between steps; nothing drawn when scale is 0."""
+        if scale > 0:
+            noise = self._noise
+            if noise is None or noise.shape != out.shape or noise.device != out.device:
+                noise = self._noise = torch.empty_like(out)
+            torch.randn(out.shape, generator=generator, out=noise)
+            out.add_(noise, alpha=scale)
+        return out
 
     def step(
         self,
@@ -82,32 +108,25 @@ class DDPMSampler(Sampler):
     supports_steps = False
     deterministic = False
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
-        if steps not in (None, schedule.num_timesteps):
-            total = schedule.num_timesteps
-            raise ValueError(f"steps: DDPM runs all {total} steps, got {steps}; use 'ddim' or 'dpmpp2m' for fewer")
-        super().__init__(schedule, None, timesteps=timesteps)
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         floats = schedule.floats
         # q(x_{t-1} | x_t, x_0) = N(coef_clean x_0 + coef_noisy x_t, sigma_t^2)  (Ho eq. 6-7)
         self.coef_clean = [floats["posterior_mean_coef_clean"][t] for t in self.timesteps]
         self.coef_noisy = [floats["posterior_mean_coef_noisy"][t] for t in self.timesteps]
         self.noise_scale = [math.sqrt(floats["posterior_variance"][t]) if t > 0 else 0.0 for t in self.timesteps]
-        self._noise: torch.Tensor | None = None
 
     def default_timesteps(self, schedule: DiffusionSchedule, steps: int | None) -> list[int]:
-        return list(range(schedule.num_timesteps - 1, -1, -1))
+        if steps not in (None, schedule.num_timesteps):
+            total = schedule.num_timesteps
+            raise ValueError(f"steps: DDPM runs all {total} steps, got {steps}; use 'ddim' or 'dpmpp2m' for fewer")
+        return list(range(schedule.num_timesteps - 1, -1, -1))  # all T steps: every spacing agrees
 
     def step(self, index, sample, clean, *, out, generator=None):
         # 1. the mean of the posterior q(x_{t-1} | x_t, x̂0): a blend of the clean estimate and x_t
         torch.mul(clean, self.coef_clean[index], out=out)
         out.add_(sample, alpha=self.coef_noisy[index])
         # 2. plus sigma_t z, z ~ N(0, I); none at the last step (t = 0)
-        if self.noise_scale[index] > 0:
-            if self._noise is None or self._noise.shape != sample.shape or self._noise.device != sample.device:
-                self._noise = torch.empty_like(sample)
-            torch.randn(sample.shape, generator=generator, out=self._noise)
-            out.add_(self._noise, alpha=self.noise_scale[index])
-        return out
+        return self._add_noise(out, self.noise_scale[index], generator)
 
 
 class DDIMSampler(Sampler):
@@ -117,8 +136,7 @@ class DDIMSampler(Sampler):
     supports_steps = True
     deterministic = True
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
-        super().__init__(schedule, steps, timesteps=timesteps)
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         # x_prev = a_prev x̂0 + s_prev eps, eps = (x_t - a_t x̂0) / s_t
         #        = (s_prev / s_t) x_t + (a_prev - s_prev a_t / s_t) x̂0
         self.coef_noisy, self.coef_clean = [], []
@@ -134,6 +152,45 @@ class DDIMSampler(Sampler):
         out.add_(sample, alpha=self.coef_noisy[index])
         return out
 
+    def update(self, index: int, sample: torch.Tensor, clean: torch.Tensor) -> torch.Tensor:
+        """step()'s x_next as a new tensor that keeps the graph: ikdp.distill trains a student through it."""
+        return self.coef_clean[index] * clean + self.coef_noisy[index] * sample
+
+
+class AncestralSampler(Sampler):
+    """DDPM's ancestral update on any number of strided steps: x_prev ~ q(x_prev | x_t, x̂0).
+
+    The posterior between two timesteps t > t' (Ho et al. 2020, eq. 6-7, with abar_t / abar_t' for
+    alpha_t) is DDIM's update with eta = 1 (Song et al. 2021, eq. 12, 16):
+        x_prev = a' x̂0 + sqrt(s'^2 - v) eps + sqrt(v) z,  eps = (x_t - a x̂0) / s,
+        v = (s'^2 / s^2) (1 - a^2 / a'^2),   a = sqrt(abar), s = sqrt(1 - abar).
+    On all T steps it is the DDPM's own update; on a few, packed near t = 0, it keeps the stochastic
+    sampler's small tail where the deterministic ones lose it (docs/BENCHMARKS.md, few-step sampling).
+    """
+
+    name = "ancestral"
+    supports_steps = True
+    deterministic = False
+
+    def precompute(self, schedule: DiffusionSchedule) -> None:
+        self.coef_noisy, self.coef_clean, self.noise_scale = [], [], []
+        for index, t in enumerate(self.timesteps):
+            t_prev = self.previous_timestep(index)
+            alpha, sigma = _alpha(schedule, t), _sigma(schedule, t)
+            alpha_prev, sigma_prev = _alpha(schedule, t_prev), _sigma(schedule, t_prev)
+            variance = (sigma_prev / sigma) ** 2 * (1 - (alpha / alpha_prev) ** 2)
+            direction = math.sqrt(max(sigma_prev**2 - variance, 0.0)) / sigma  # the share of eps kept
+            self.coef_noisy.append(direction)
+            self.coef_clean.append(alpha_prev - direction * alpha)
+            self.noise_scale.append(math.sqrt(variance))
+
+    def step(self, index, sample, clean, *, out, generator=None):
+        # 1. the posterior's mean: x̂0 re-noised to t_prev along part of the implied noise
+        torch.mul(clean, self.coef_clean[index], out=out)
+        out.add_(sample, alpha=self.coef_noisy[index])
+        # 2. plus its standard deviation times z ~ N(0, I); none on the last step (t_prev = -1)
+        return self._add_noise(out, self.noise_scale[index], generator)
+
 
 class DPMSolverPP2MSampler(Sampler):
     """DPM-Solver++(2M) (Lu et al. 2022, Alg. 2): second-order multistep in the data prediction.
@@ -148,8 +205,7 @@ class DPMSolverPP2MSampler(Sampler):
     supports_steps = True
     deterministic = True
 
-    def __init__(self, schedule: DiffusionSchedule, steps: int | None = None, *, timesteps: list[int] | None = None):
-        super().__init__(schedule, steps, timesteps=timesteps)
+    def precompute(self, schedule: DiffusionSchedule) -> None:
         self.coef_noisy, self.coef_clean, self.coef_previous = [], [], []
         previous_h = None
         for index, t in enumerate(self.timesteps):
@@ -196,15 +252,20 @@ class DPMSolverPP2MSampler(Sampler):
         return out
 
 
-SAMPLERS: dict[str, type[Sampler]] = {cls.name: cls for cls in (DDPMSampler, DDIMSampler, DPMSolverPP2MSampler)}
+SAMPLERS: dict[str, type[Sampler]] = {
+    cls.name: cls for cls in (DDPMSampler, DDIMSampler, DPMSolverPP2MSampler, AncestralSampler)
+}
 
 
 def sampler_names() -> tuple[str, ...]:
     return tuple(SAMPLERS)
 
 
-def make_sampler(name: str, schedule: DiffusionSchedule, steps: int | None = None) -> Sampler:
-    """The sampler called `name` for `schedule`; ValueError naming the choices otherwise."""
+def make_sampler(name: str, schedule: DiffusionSchedule, steps: int | None = None, spacing: str = "uniform") -> Sampler:
+    """The sampler called `name` for `schedule`, its `steps` timesteps spread by `spacing` (TIMESTEP_SPACINGS).
+
+    ValueError naming the choices otherwise.
+    """
     if name not in SAMPLERS:
         raise ValueError(f"sampler: expected one of {sampler_names()}, got {name!r}")
-    return SAMPLERS[name](schedule, steps)
+    return SAMPLERS[name](schedule, steps, spacing=spacing)

@@ -50,6 +50,7 @@ class Trajectory:
     estimates: torch.Tensor | None  # (S', B, K, J) the denoiser's x̂0 at each step
     timesteps: list[int]  # the S timesteps of the sampler, noisiest first
     stopped: bool = False  # True when the callback stopped the run; S' < S steps were run then
+    network_evaluations: int = 0  # S', the denoiser calls each sample went through, one after another
 
 
 def step_conditions(denoiser, timesteps: list[int], targets: torch.Tensor, num_samples: int):
@@ -158,4 +159,5 @@ def run_reverse_diffusion(
         estimates=representation.decode(estimates[:steps_run]).unflatten(1, unflatten) if return_estimates else None,
         timesteps=list(sampler.timesteps),
         stopped=stopped,
+        network_evaluations=steps_run,
     )

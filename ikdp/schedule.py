@@ -15,6 +15,8 @@ import torch
 
 SCHEDULE_KINDS = ("linear", "cosine", "karras")
 PREDICTION_KINDS = ("epsilon", "sample")
+# how a few-step sampler spreads its timesteps over [0, T-1]: evenly, or packed near t = 0 (quadratic)
+TIMESTEP_SPACINGS = ("uniform", "quadratic")
 
 
 @dataclass(frozen=True)
@@ -117,12 +119,26 @@ class DiffusionSchedule:
         f = self.floats
         return (sample - f["sqrt_one_minus_alphas_cumprod"][t] * model_output) / f["sqrt_alphas_cumprod"][t]
 
-    def ddim_timesteps(self, steps: int | None) -> list[int]:
-        """Evenly strided timesteps from T-1 down to 0 for a DDIM run of `steps` steps (None = all T)."""
+    def timestep_grid(self, steps: int | None, spacing: str = "uniform") -> list[int]:
+        """Timesteps from T-1 down to 0 for a run of `steps` steps (None = all T), noisiest first.
+
+        `uniform`: evenly strided (DDIM's). `quadratic`: t_i = (T-1)(1 - i/(n-1))^2, rounded, packed
+        near t = 0 where a few-step sampler's last steps decide the pose's millimetres (T = 100, n = 4:
+        99, 44, 11, 0); where rounding would repeat a timestep it is raised to one above the next.
+        """
         steps = self.num_timesteps if steps is None else steps
         if not 1 <= steps <= self.num_timesteps:
             raise ValueError(f"steps: expected 1 <= steps <= {self.num_timesteps}, got {steps}")
+        if spacing not in TIMESTEP_SPACINGS:
+            raise ValueError(f"spacing: expected one of {TIMESTEP_SPACINGS}, got {spacing!r}")
         if steps == 1:
             return [self.num_timesteps - 1]
         # both ends included: the last step denoises from t=0, where the model is most precise
-        return torch.linspace(self.num_timesteps - 1, 0, steps, dtype=torch.float64).round().long().tolist()
+        last = self.num_timesteps - 1
+        if spacing == "uniform":
+            return torch.linspace(last, 0, steps, dtype=torch.float64).round().long().tolist()
+        fraction = torch.linspace(1, 0, steps, dtype=torch.float64)  # (steps,) from the noisy end to the clean one
+        grid = (last * fraction**2).round().long().tolist()
+        for index in range(steps - 2, -1, -1):  # strictly decreasing; never above T-1 when steps <= T
+            grid[index] = max(grid[index], grid[index + 1] + 1)
+        return grid

@@ -21,6 +21,7 @@ from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp.sampling import StepCallback
+from ikdp.schedule import TIMESTEP_SPACINGS
 from ikdp.shipped import shipped_checkpoint
 from ikdp.tracking import TrackResult, track
 
@@ -44,6 +45,7 @@ class SolveResult:
     stopped: bool = False  # True when the callback stopped the solve; the poses are the state reached then
     rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets (free axis: the axis's miss)
     constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
+    network_evaluations: int = 0  # denoiser calls each sample went through, one after another (the refinement: none)
 
     @property
     def constraints_met(self) -> torch.Tensor | None:
@@ -89,6 +91,18 @@ class Solver:
         """(inner, outer) radius of a planar arm's reachable annulus."""
         return self.arm.reach
 
+    def default_spacing(self, sampler: str, steps: int | None) -> str:
+        """The timestep spacing a solve uses when it names none.
+
+        A distilled student's own (sampler, steps) use the grid it was trained on; a robot's few-step
+        solves use the grid packed near t = 0, which measured better at 4 to 16 evaluations on both shipped
+        Panda models (docs/BENCHMARKS.md, few-step sampling); a planar arm's keep the evenly spaced grid.
+        """
+        student = self.metadata.get("distill") or {}
+        if (sampler, steps) == (student.get("sampler"), student.get("steps")):
+            return student["spacing"]
+        return "quadratic" if self.arm.kind == "chain" else "uniform"
+
     def solve(
         self,
         targets,
@@ -96,6 +110,7 @@ class Solver:
         num_samples: int = 16,
         sampler: str = "ddpm",
         steps: int | None = None,
+        spacing: str | None = None,
         refine_steps: int = 0,
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
@@ -115,6 +130,8 @@ class Solver:
         step with the state and the denoiser's x̂0 as joint values (B, K, J); returning
         True stops the solve at once (`stopped` is then True and no refinement runs).
 
+        `spacing`: how the sampler's `steps` timesteps spread over [0, T-1]: "uniform" or "quadratic"
+        (packed near t = 0); None: `default_spacing(sampler, steps)`.
         `initial_noise`: the pure noise x_T the samplers start from, (B, K, D) with D =
         `solver.noise_dim`; the same x_T given to DDPM and to DDIM compares the two on equal
         terms. None draws it from `generator` (as the first thing drawn).
@@ -124,7 +141,8 @@ class Solver:
         """
         arm = self.arm
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
-        self.check_options(len(targets), num_samples, sampler, steps, refine_steps, generator, initial_noise)
+        spacing = self.default_spacing(sampler, steps) if spacing is None else spacing
+        self.check_options(len(targets), num_samples, sampler, steps, spacing, refine_steps, generator, initial_noise)
         self.check_memory(len(targets) * num_samples, sampler, steps, return_trajectory, return_estimates)
         reachable = arm.is_reachable(targets)
         conditions = arm.clamp_to_workspace(targets)
@@ -138,12 +156,13 @@ class Solver:
         guidance = None
         if bound is not None:
             rows = sample_targets.repeat_interleave(per_target, dim=0)
-            guidance = bound.guidance(self.model.representation, self.model.sampler(sampler, steps), rows)
+            guidance = bound.guidance(self.model.representation, self.model.sampler(sampler, steps, spacing), rows)
         result = self.model.sample(
             sample_targets,
             num_samples=per_target,
             sampler=sampler,
             steps=steps,
+            spacing=spacing,
             generator=generator,
             return_trajectory=return_trajectory,
             return_estimates=return_estimates,
@@ -188,14 +207,19 @@ class Solver:
             stopped=result.stopped,
             rotation_error=rotation_error,
             constraint_violation=None if bound is None else bound.violation(angles),
+            network_evaluations=result.network_evaluations,
         )
 
-    def check_options(self, batch, num_samples, sampler, steps, refine_steps, generator, initial_noise) -> None:
+    def check_options(
+        self, batch, num_samples, sampler, steps, spacing, refine_steps, generator, initial_noise
+    ) -> None:
         """ValueError naming the first of solve's options that cannot run, before any work starts."""
         if not is_integer(num_samples) or num_samples < 1:
             raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler: expected one of {sampler_names()}, got {sampler!r}")
+        if spacing not in TIMESTEP_SPACINGS:
+            raise ValueError(f"spacing: expected one of {TIMESTEP_SPACINGS} or None, got {spacing!r}")
         if steps is not None and (not is_integer(steps) or steps < 1):
             raise ValueError(f"steps: expected None or a positive integer, got {steps!r}")
         if not is_integer(refine_steps) or refine_steps < 0:
@@ -311,5 +335,6 @@ def load(path: str | Path, device: str | torch.device = "cpu") -> Solver:
         "model": payload["model"],
         "train": payload["train"],
         "metrics": payload["metrics"],
+        "distill": payload.get("distill"),  # a student of ikdp.distill: its teacher and its own sampler
     }
     return Solver(model, prior, metadata, device)

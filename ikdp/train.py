@@ -256,13 +256,16 @@ def log_folder(config: TrainConfig) -> Path:
     return Path(config.log_dir) if config.log_dir else output.parent / "logs" / output.stem
 
 
-def saved_config(payload: dict) -> TrainConfig:
-    """The TrainConfig a checkpoint was trained with (its `train` record; unknown or missing keys are skipped)."""
+def saved_config(payload: dict, config_class: type = TrainConfig):
+    """The config a checkpoint was trained with (its `train` record; unknown or missing keys are skipped).
+
+    `config_class`: TrainConfig, or another command's (ikdp.distill's DistillConfig).
+    """
     record = payload["train"]
-    values = {field.name: record[field.name] for field in fields(TrainConfig) if field.name in record}
+    values = {field.name: record[field.name] for field in fields(config_class) if field.name in record}
     if isinstance(values.get("lengths"), list):
         values["lengths"] = tuple(values["lengths"])
-    return replace(TrainConfig(), **values)
+    return replace(config_class(), **values)
 
 
 @dataclass(frozen=True)
@@ -513,22 +516,28 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     return output
 
 
-def parse_config(argv: list[str] | None = None) -> TrainConfig:
-    """The command line as a TrainConfig; with --resume, options not given come from the checkpoint's own record."""
+def parse_config(argv: list[str] | None = None, config_class: type = TrainConfig, prog: str = "ikdp-train"):
+    """The command line as a TrainConfig (or `config_class`); with --resume, options not given come from the
+    checkpoint's own record."""
     import tyro  # imported here: only the command line needs it
 
-    config = tyro.cli(TrainConfig, args=argv, prog="ikdp-train")
+    config = tyro.cli(config_class, args=argv, prog=prog)
     output = Path(config.output)
     if config.resume and output.exists():
-        saved = replace(saved_config(read_checkpoint(output)), output=config.output, resume=True)
-        config = tyro.cli(TrainConfig, args=argv, prog="ikdp-train", default=saved)
+        saved = replace(saved_config(read_checkpoint(output), config_class), output=config.output, resume=True)
+        config = tyro.cli(config_class, args=argv, prog=prog, default=saved)
     return config
 
 
-def main(argv: list[str] | None = None) -> None:
-    signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill saves a checkpoint as Ctrl-C does
+def save_on_interrupt() -> None:
+    """Ctrl-C and a kill (SIGTERM) raise KeyboardInterrupt, on which a training saves its checkpoint."""
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     # Started with SIGINT ignored (`nohup ... &`, a CI runner), Python installs no Ctrl-C handler: install it
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def main(argv: list[str] | None = None) -> None:
+    save_on_interrupt()
     try:
         train(parse_config(argv))
     except (ValueError, CheckpointError) as error:

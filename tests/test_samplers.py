@@ -6,7 +6,15 @@ import pytest
 import torch
 
 import ikdp
-from ikdp.samplers import SAMPLERS, DDIMSampler, DDPMSampler, DPMSolverPP2MSampler, make_sampler, sampler_names
+from ikdp.samplers import (
+    SAMPLERS,
+    AncestralSampler,
+    DDIMSampler,
+    DDPMSampler,
+    DPMSolverPP2MSampler,
+    make_sampler,
+    sampler_names,
+)
 from ikdp.sampling import step_conditions
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig, make_betas
 
@@ -20,10 +28,12 @@ def step(sampler, index, sample, clean, generator=None):
 
 
 def test_registry_names_and_bad_names():
-    assert sampler_names() == ("ddpm", "ddim", "dpmpp2m")
+    assert sampler_names() == ("ddpm", "ddim", "dpmpp2m", "ancestral")
     assert not SAMPLERS["ddpm"].supports_steps and SAMPLERS["ddim"].supports_steps
     schedule = DiffusionSchedule()
-    with pytest.raises(ValueError, match=r"sampler: expected one of \('ddpm', 'ddim', 'dpmpp2m'\), got 'heun'"):
+    with pytest.raises(
+        ValueError, match=r"sampler: expected one of \('ddpm', 'ddim', 'dpmpp2m', 'ancestral'\), got 'heun'"
+    ):
         make_sampler("heun", schedule)
     with pytest.raises(ValueError, match="steps: DDPM runs all 80 steps"):
         make_sampler("ddpm", schedule, 10)
@@ -31,6 +41,21 @@ def test_registry_names_and_bad_names():
         make_sampler("ddim", schedule, 81)
     with pytest.raises(ValueError, match="decreasing"):
         DDIMSampler(schedule, timesteps=[10, 20])
+    with pytest.raises(ValueError, match=r"spacing: expected one of \('uniform', 'quadratic'\), got 'even'"):
+        make_sampler("ddim", schedule, 4, spacing="even")
+
+
+@pytest.mark.parametrize("name", ["ddim", "dpmpp2m", "ancestral"])
+def test_spacing_chooses_the_grid_and_the_coefficients_follow(name):
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="cosine"))
+    packed = make_sampler(name, schedule, 4, spacing="quadratic")
+    assert packed.timesteps == [99, 44, 11, 0] and packed.spacing == "quadratic"
+    assert make_sampler(name, schedule, 4).timesteps == [99, 66, 33, 0]
+    # the same sampler on the same explicit timesteps: spacing only picks the grid
+    explicit = SAMPLERS[name](schedule, timesteps=[99, 44, 11, 0])
+    assert packed.coef_clean == explicit.coef_clean and packed.coef_noisy == explicit.coef_noisy
+    # the DDPM runs all T steps, so every spacing is the same run
+    assert make_sampler("ddpm", schedule, spacing="quadratic").timesteps == list(range(99, -1, -1))
 
 
 def test_ddpm_step_by_hand():
@@ -94,7 +119,9 @@ def test_ddpm_matches_diffusers_step_for_step(kind):
 
 
 @pytest.mark.parametrize("steps", [5, 10, 20])
-def test_ddim_matches_diffusers_step_for_step(steps):
+@pytest.mark.parametrize("eta, sampler_class", [(0.0, DDIMSampler), (1.0, AncestralSampler)])
+def test_ddim_and_ancestral_match_diffusers_step_for_step(steps, eta, sampler_class):
+    # the ancestral sampler is diffusers' DDIM with eta = 1 (its noise passed in), DDIM's is eta = 0
     schedule = DiffusionSchedule()
     theirs = diffusers.DDIMScheduler(
         **diffusers_kwargs(schedule),
@@ -105,14 +132,26 @@ def test_ddim_matches_diffusers_step_for_step(steps):
     )
     same_alphas(theirs, schedule)
     theirs.set_timesteps(steps)
-    ours = DDIMSampler(schedule, timesteps=theirs.timesteps.tolist())
+    ours = sampler_class(schedule, timesteps=theirs.timesteps.tolist())
     data = torch.Generator().manual_seed(1)
     x = torch.randn((8, 6), generator=data)
     for index, t in enumerate(ours.timesteps):
         clean = torch.randn((8, 6), generator=data)
-        expected = theirs.step(clean.double(), t, x.double(), eta=0.0).prev_sample.float()
-        x = step(ours, index, x, clean)
-        torch.testing.assert_close(x, expected, atol=1e-6, rtol=0)
+        noise = torch.randn((8, 6), generator=torch.Generator().manual_seed(index))
+        expected = theirs.step(clean.double(), t, x.double(), eta=eta, variance_noise=noise.double()).prev_sample
+        x = step(ours, index, x, clean, torch.Generator().manual_seed(index))
+        torch.testing.assert_close(x, expected.float(), atol=1e-5 if eta else 1e-6, rtol=0)
+
+
+def test_ancestral_on_every_step_is_the_ddpm():
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100, kind="cosine"))
+    strided, every = AncestralSampler(schedule), DDPMSampler(schedule)
+    # the same posterior q(x_{t-1} | x_t, x0); the two compute it from float32 constants by different routes
+    for ours, ddpm in (("coef_clean", "coef_clean"), ("coef_noisy", "coef_noisy"), ("noise_scale", "noise_scale")):
+        torch.testing.assert_close(
+            torch.tensor(getattr(strided, ours)), torch.tensor(getattr(every, ddpm)), atol=1e-4, rtol=0
+        )
+    assert make_sampler("ancestral", schedule, 4, spacing="quadratic").timesteps == [99, 44, 11, 0]
 
 
 @pytest.mark.parametrize("steps", [5, 10, 20])
@@ -160,7 +199,7 @@ def reference_loop(solver, targets, sampler_name, steps, num_samples, seed):
     return model.representation.decode(torch.stack(states)).unflatten(1, (len(targets), num_samples))
 
 
-@pytest.mark.parametrize("sampler, steps", [("ddpm", None), ("ddim", 7), ("dpmpp2m", 6)])
+@pytest.mark.parametrize("sampler, steps", [("ddpm", None), ("ddim", 7), ("dpmpp2m", 6), ("ancestral", 5)])
 def test_fast_loop_is_bit_identical_to_the_reference(tiny_checkpoint, sampler, steps, monkeypatch):
     # the loop's own buffers change nothing; the compiled step's rounding is tests/test_film_compiled.py's
     monkeypatch.setattr("ikdp.denoisers.film.compiled_workspace", lambda *args: None)
@@ -196,7 +235,7 @@ def test_callback_sees_every_step_and_can_stop(tiny_checkpoint):
         callback=record,
         generator=torch.Generator().manual_seed(0),
     )
-    assert not out.stopped
+    assert not out.stopped and out.network_evaluations == 8
     assert [index for index, *_ in seen] == list(range(8)) and [t for _, t, *_ in seen] == out.timesteps
     assert out.estimates.shape == (8, 2, 4, 3) and out.trajectory.shape == (9, 2, 4, 3)
     for index, _, state, estimate in seen:  # the callback's views are the recorded ones
@@ -211,4 +250,5 @@ def test_callback_sees_every_step_and_can_stop(tiny_checkpoint):
         [[1.0, 0.5]], num_samples=2, return_trajectory=True, refine_steps=3, callback=stop_after_three
     )
     assert stopped.stopped and stopped.trajectory.shape[0] == 4
+    assert stopped.network_evaluations == 3  # steps 0, 1 and 2 ran; the DDPM's other 17 did not
     torch.testing.assert_close(stopped.angles, stopped.trajectory[-1])  # the state reached, not refined

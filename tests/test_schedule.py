@@ -56,19 +56,37 @@ def test_add_noise_is_the_forward_marginal():
     torch.testing.assert_close(noisy, expected.expand(3, 2))
 
 
-def test_ddim_timesteps():
+def test_uniform_timestep_grid():
     schedule = DiffusionSchedule()
-    assert schedule.ddim_timesteps(None) == list(range(79, -1, -1))
-    strided = schedule.ddim_timesteps(20)
+    assert schedule.timestep_grid(None) == list(range(79, -1, -1))
+    strided = schedule.timestep_grid(20)
     assert len(strided) == 20 and strided[0] == 79 and strided[-1] == 0
     assert all(a > b for a, b in zip(strided, strided[1:], strict=False))
+    assert schedule.timestep_grid(4) == [79, 53, 26, 0]
+
+
+def test_quadratic_timestep_grid_is_packed_near_zero():
+    # t_i = (T-1)(1 - i/(n-1))^2 rounded: T = 100, n = 4 gives 99, 44, 11, 0 (99 * 4/9 = 44, 99/9 = 11)
+    schedule = DiffusionSchedule(ScheduleConfig(timesteps=100))
+    assert schedule.timestep_grid(4, "quadratic") == [99, 44, 11, 0]
+    assert schedule.timestep_grid(8, "quadratic") == [99, 73, 51, 32, 18, 8, 2, 0]
+    assert schedule.timestep_grid(2, "quadratic") == [99, 0] and schedule.timestep_grid(1, "quadratic") == [99]
+    # at n = 16 rounding gives 0.44 -> 0 for the last but one: raised to 1, one above the last
+    assert schedule.timestep_grid(16, "quadratic")[-4:] == [4, 2, 1, 0]
+    # every n up to T: strictly decreasing from T-1 to 0, all T at n = T
+    for steps in range(2, 101):
+        grid = schedule.timestep_grid(steps, "quadratic")
+        assert len(grid) == steps and grid[0] == 99 and grid[-1] == 0
+        assert all(a > b for a, b in zip(grid, grid[1:], strict=False))
+    assert schedule.timestep_grid(100, "quadratic") == list(range(99, -1, -1))
 
 
 @pytest.mark.parametrize(
     "call, message",
     [
-        (lambda s: s.ddim_timesteps(81), "steps"),
-        (lambda s: s.ddim_timesteps(0), "steps"),
+        (lambda s: s.timestep_grid(81), "steps"),
+        (lambda s: s.timestep_grid(0), "steps"),
+        (lambda s: s.timestep_grid(4, "cubic"), r"spacing: expected one of \('uniform', 'quadratic'\), got 'cubic'"),
         (lambda s: s.add_noise(torch.zeros(1, 2), torch.zeros(1, 2), torch.tensor([-1])), "timestep"),
         (lambda s: s.predict_clean(torch.zeros(1, 2), 3, torch.zeros(1, 2), "v"), "prediction"),
     ],

@@ -1,0 +1,131 @@
+"""K = 16 + refinement on a robot, one CPU thread: IKDP's fastest pipeline at a success share beside
+pytorch_kinematics' PseudoInverseIK tuned to the same share, in the same run (issue 27, deliver 2).
+
+    OMP_NUM_THREADS=1 python benchmarks/few_step_pipeline.py --checkpoints ikdp_panda ikdp_panda_cpu
+
+On robot_benchmark's 1000 held-out pose targets, every IKDP pipeline `name:steps:spacing+refine` (K = 16
+samples, then `refine` limit-aware DLS steps) and every PseudoInverseIK setting `retriesxiterations` is timed
+once per round, round-robin (so the machine's load hits all alike), `rounds` rounds, median quoted; a target
+is solved when one of its poses is within 1 mm and 1 degree. For each, the fastest row at a share of at least
+`success` is picked, and the ratio IKDP / PseudoInverseIK printed. Writes benchmarks/results/few_step_pipeline.json.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import torch
+import tyro
+
+import ikdp
+from benchmarks.robot_benchmark import parse_sampler, pseudo_inverse, verdict, write
+from ikdp.evaluation.machine import machine_description
+
+RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    checkpoints: tuple[str, ...] = ("ikdp_panda", "ikdp_panda_cpu")  # paths or shipped names
+    pipelines: tuple[str, ...] = (  # name:steps:spacing+refine
+        "dpmpp2m:3:uniform+10",
+        "dpmpp2m:3:quadratic+10",
+        "ddim:3:uniform+5",
+        "ddim:3:quadratic+5",
+        "ddim:2:uniform+5",
+        "ddim:4:quadratic+5",
+        "dpmpp2m:4:quadratic+5",
+        "ddim:2:uniform+10",
+    )
+    pk_settings: tuple[str, ...] = ("8x20", "8x30", "16x20", "16x30")  # PseudoInverseIK retries x iterations
+    success: float = 0.995  # the share a pipeline must reach to be picked
+    targets: int = 1000
+    samples: int = 16
+    rounds: int = 3
+    seed: int = 0
+    output: Path = field(default=RESULTS)
+
+
+def parse_pipeline(text: str) -> tuple[str, int | None, str, int]:
+    """'ddim:3:quadratic+5' -> ('ddim', 3, 'quadratic', 5)."""
+    sampler, _, refine = text.partition("+")
+    head, _, spacing = sampler.rpartition(":")
+    name, steps = parse_sampler(head)
+    return name, steps, spacing, int(refine)
+
+
+def measure(checkpoint: str, config: PipelineConfig) -> dict:
+    solver = ikdp.load(checkpoint)
+    arm = solver.arm
+    targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
+    runs = {}
+    for text in config.pipelines:
+        name, steps, spacing, refine = parse_pipeline(text)
+        runs[f"IKDP {text}"] = lambda name=name, steps=steps, spacing=spacing, refine=refine: (
+            solver.solve(
+                targets,
+                num_samples=config.samples,
+                sampler=name,
+                steps=steps,
+                spacing=spacing,
+                refine_steps=refine,
+                generator=torch.Generator().manual_seed(2),
+            ).angles
+        )
+    for text in config.pk_settings:
+        retries, iterations = (int(part) for part in text.split("x"))
+        runs[f"PseudoInverseIK {text}"] = pseudo_inverse(arm, targets, retries, iterations, config.seed)
+    seconds: dict[str, list[float]] = {label: [] for label in runs}
+    answers = {}
+    for label, run in runs.items():  # warm-up, and the answers judged
+        answers[label] = run()
+    for _ in range(config.rounds):
+        for label, run in runs.items():
+            started = time.perf_counter()
+            run()
+            seconds[label].append(time.perf_counter() - started)
+    rows = {}
+    for label in runs:
+        rows[label] = {
+            "ms_per_target": 1000 * statistics.median(seconds[label]) / len(targets),
+            "repeats_ms_per_target": [1000 * s / len(targets) for s in seconds[label]],
+            **verdict(arm, answers[label], targets),
+        }
+
+    def fastest(prefix: str):
+        eligible = [(row["ms_per_target"], label) for label, row in rows.items() if label.startswith(prefix)]
+        eligible = [(ms, label) for ms, label in eligible if rows[label]["success_share"] >= config.success]
+        return min(eligible)[1] if eligible else None
+
+    ours, theirs = fastest("IKDP"), fastest("PseudoInverseIK")
+    ratio = rows[ours]["ms_per_target"] / rows[theirs]["ms_per_target"] if ours and theirs else None
+    return {"path": solver.metadata["path"], "rows": rows, "fastest_ikdp": ours, "fastest_pk": theirs, "ratio": ratio}
+
+
+def main(config: PipelineConfig) -> dict:
+    torch.set_num_threads(1)
+    results = {"config": {**asdict(config), "output": str(config.output)}, "machine": machine_description(1)}
+    models = {}
+    for checkpoint in config.checkpoints:
+        models[checkpoint] = measure(checkpoint, config)
+        model = models[checkpoint]
+        print(f"\n{checkpoint}: K = {config.samples} + refinement, {config.targets} targets, within 1 mm and 1 deg")
+        print("| pipeline | solved | valid of 16 | diversity (rad) | ms per target (median of rounds) |")
+        print("|---|---|---|---|---|")
+        for label, row in model["rows"].items():
+            print(
+                f"| {label} | {100 * row['success_share']:.1f} % | {row['valid_per_target']:.1f} "
+                f"| {row['diversity_rad']:.2f} | {row['ms_per_target']:.3f} |"
+            )
+        ratio = f"{model['ratio']:.2f}" if model["ratio"] is not None else "n/a"
+        print(f"fastest at >= {100 * config.success:.1f} %: {model['fastest_ikdp']} / {model['fastest_pk']} = {ratio}")
+    results["models"] = models
+    write(results, config.output)
+    return results
+
+
+if __name__ == "__main__":
+    main(tyro.cli(PipelineConfig, description=__doc__.splitlines()[0]))

@@ -1,0 +1,280 @@
+"""Distil a trained IKDP model into a few-step student: `python -m ikdp.distill --teacher ikdp_n4 --student-steps 2`.
+
+The student is the teacher's network, copied, then trained so that DDIM on `student_steps` timesteps
+(`spacing`: packed near t = 0 by default) lands where the teacher's deterministic sampler lands in
+many more steps from the same noise x_T (Luhman & Luhman 2021's knowledge distillation of the ODE,
+the few-step sampler unrolled and trained end to end, as in progressive distillation's single round):
+
+    x_T ~ N(0, I); poses ~ prior; targets = FK(poses)
+    teacher: x_T --(teacher_sampler, teacher_steps)--> x0_teacher                 (no gradient)
+    student: x_T --(DDIM, student_steps, the student's x̂0 at each step)--> x0_student
+    loss = |x0_student - x0_teacher|^2 + tip_loss_weight * FK miss of x0_student  (model.consistency_miss)
+
+The noise picks the teacher's mode, so matching the teacher from the same x_T keeps the spread of
+its samples (no averaging of elbow-up and elbow-down into neither); the FK term pulls the student's
+pose onto the target where the teacher's ODE missed it. Poses and noise are drawn afresh each step.
+
+The student checkpoint is an ordinary IKDP checkpoint (`ikdp.load` solves with it, with any sampler)
+plus a `distill` record: the teacher, its sampler, and the student's (sampler, steps, spacing), which
+`Solver.default_spacing` follows. A tqdm bar shows the loss; TensorBoard logs go beside the checkpoint
+(`<folder>/logs/<stem>`); the checkpoint is written atomically every `--save-every` steps, at the end
+and on Ctrl-C or SIGTERM; `--resume` continues from it; `--minutes` bounds the wall clock.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Literal
+
+import torch
+from tqdm import tqdm
+
+from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
+from ikdp.model import IKDiffusion
+from ikdp.priors import PosePrior
+from ikdp.samplers import DDIMSampler, make_sampler
+from ikdp.solver import load, model_from_checkpoint
+from ikdp.train import parse_config, save_on_interrupt
+from ikdp.train_budget import TrainingBudget
+
+
+@dataclass(frozen=True)
+class DistillConfig:
+    """Distil an IKDP teacher into a student that samples in a few network evaluations."""
+
+    teacher: str = "ikdp_n4"  # the teacher: a checkpoint path or a shipped model's name
+    student_steps: int = 2  # network evaluations of the student's DDIM
+    spacing: Literal["uniform", "quadratic"] = "quadratic"  # the student's timestep grid
+    teacher_sampler: Literal["ddim", "dpmpp2m"] = "dpmpp2m"  # the teacher's deterministic sampler
+    teacher_steps: int = 16  # its steps
+    teacher_spacing: Literal["uniform", "quadratic"] = "quadratic"  # its grid
+    tip_loss_weight: float = 2000.0  # weight of the FK miss of the student's pose (ikdp_n4_2step's; at 100 it lost)
+    steps: int = 2000  # optimizer steps (the run ends at this or at --minutes, whichever comes first)
+    minutes: float = 0.0  # wall-clock budget of the whole run, resumes included (0: none)
+    batch: int = 256  # poses per step
+    lr: float = 1e-4  # peak learning rate (AdamW): the student starts from the teacher's weights
+    warmup: int = 100  # linear warm-up steps, then cosine down to a tenth
+    seed: int = 0  # seeds the data stream (poses and noise)
+    device: str = "cpu"  # cpu, cuda, ...
+    threads: int = 0  # torch CPU threads; 0 leaves torch's default
+    output: str = "runs/student.pt"  # the student's checkpoint
+    log_dir: str = ""  # TensorBoard folder; empty: <output folder>/logs/<output stem>
+    save_every: int = 200  # steps between checkpoints
+    eval_targets: int = 500  # targets of the raw K = 1 accuracy measured at each save
+    resume: bool = False  # continue from --output if it exists, with the config saved in it
+
+
+def validate(config: DistillConfig) -> None:
+    """ValueError naming the option when a value cannot distil."""
+    positive = {"student_steps": config.student_steps, "teacher_steps": config.teacher_steps}
+    positive |= {"batch": config.batch, "lr": config.lr, "save_every": config.save_every}  # steps: TrainingBudget
+    for name, value in positive.items():
+        if not value > 0:
+            raise ValueError(f"{name}: got {value}, expected a positive number")
+    nonnegative = {"threads": config.threads, "eval_targets": config.eval_targets}
+    nonnegative |= {"tip_loss_weight": config.tip_loss_weight}
+    for name, value in nonnegative.items():
+        if value < 0:
+            raise ValueError(f"{name}: got {value}, expected 0 or more")
+
+
+def student_sampler(model: IKDiffusion, config: DistillConfig) -> DDIMSampler:
+    sampler = make_sampler("ddim", model.schedule, config.student_steps, config.spacing)
+    assert isinstance(sampler, DDIMSampler)
+    return sampler
+
+
+def unrolled_student(model: IKDiffusion, sampler: DDIMSampler, noise: torch.Tensor, targets: torch.Tensor):
+    """The student's DDIM from x_T (B, D) to its clean pose (B, D), with the graph kept for the gradient.
+
+    The loop of ikdp.sampling.run_reverse_diffusion, step for step (x̂0 from the denoiser, projected onto
+    the representation's manifold, then DDIM's update), on the training forward of the denoiser.
+    """
+    project = not (model.config.prediction == "sample" and getattr(model.denoiser, "output_on_manifold", False))
+    x = noise
+    for index, t in enumerate(sampler.timesteps):
+        output = model.denoiser(x, torch.full((len(x),), t, device=x.device), targets)
+        clean = model.schedule.predict_clean(output, t, x, model.config.prediction)
+        if project:
+            clean = model.representation.project(clean)
+        x = sampler.update(index, x, clean)
+    return x
+
+
+@torch.no_grad()
+def teacher_poses(teacher: IKDiffusion, config: DistillConfig, noise: torch.Tensor, targets: torch.Tensor):
+    """The teacher's clean pose (B, D), in the representation's coordinates, from the noise x_T (B, D)."""
+    trajectory = teacher.sample(
+        targets,
+        sampler=config.teacher_sampler,
+        steps=config.teacher_steps,
+        spacing=config.teacher_spacing,
+        initial_noise=noise[:, None],
+    )
+    return teacher.representation.encode(trajectory.headings[:, 0]).clone()  # a plain tensor, not an inference one
+
+
+@torch.no_grad()
+def measure_student(model: IKDiffusion, prior: PosePrior, config: DistillConfig, device: torch.device) -> dict:
+    """The student's raw accuracy, its own sampler, K = 1, on `eval_targets` targets from the prior (fixed seed)."""
+    arm = model.arm
+    targets = arm.end_effector(prior.sample(config.eval_targets, arm, generator=torch.Generator().manual_seed(12345)))
+    model.eval()
+    poses = model.sample(
+        targets.to(device),
+        sampler="ddim",
+        steps=config.student_steps,
+        spacing=config.spacing,
+        generator=torch.Generator(device).manual_seed(1),
+    ).headings[:, 0]
+    model.train()
+    error = arm.tip_error(poses.cpu(), targets)
+    metrics = {
+        "eval_targets": config.eval_targets,
+        "tip_error_median": float(error.median()),
+        "tip_error_mean": float(error.mean()),
+        "tip_error_p95": float(error.quantile(0.95)),
+        "sampler": f"ddim {config.student_steps} steps ({config.spacing}) raw, K=1",
+    }
+    if arm.target_dim == 7:
+        rotation = arm.rotation_error(poses.cpu(), targets)
+        metrics.update(rotation_error_median=float(rotation.median()), rotation_error_mean=float(rotation.mean()))
+    return metrics
+
+
+def log_folder(config: DistillConfig) -> Path:
+    output = Path(config.output)
+    return Path(config.log_dir) if config.log_dir else output.parent / "logs" / output.stem
+
+
+def distill(config: DistillConfig, command: str = "") -> Path:
+    """Train the student and return its checkpoint's path."""
+    validate(config)
+    budget = TrainingBudget(config.steps, config.minutes, config.warmup)  # ValueError naming a bad one
+    if config.threads:
+        torch.set_num_threads(config.threads)
+    device = torch.device(config.device)
+    output = Path(config.output)
+    teacher_solver = load(config.teacher, device=device)
+    teacher_path = teacher_solver.metadata["path"]
+    teacher_payload = read_checkpoint(teacher_path)
+    teacher, prior = teacher_solver.model, teacher_solver.prior
+    student = model_from_checkpoint(teacher_payload, teacher_path).to(device)  # starts as the teacher
+    sampler = student_sampler(student, config)
+    optimizer = torch.optim.AdamW(student.parameters(), lr=config.lr, weight_decay=0.0)
+    data_generator = torch.Generator().manual_seed(config.seed)
+    step, seconds_before = 0, 0.0
+    remove_stale_temporaries(output)
+    if config.resume and output.exists():
+        payload = read_checkpoint(output)
+        student.load_state_dict(model_from_checkpoint(payload, str(output)).state_dict())
+        optimizer.load_state_dict(payload["optimizer"])
+        data_generator.set_state(payload["data_generator"])
+        step, seconds_before = int(payload["train"]["step"]), float(payload["train"]["seconds"])
+        print(f"resuming {output} at step {step}", file=sys.stderr)
+
+    try:
+        from torch.utils.tensorboard import SummaryWriter  # imported late: slow, and only training needs it
+    except ImportError:
+        raise ValueError("TensorBoard is not installed: pip install 'ikdp[train]'") from None
+    writer = SummaryWriter(str(log_folder(config)), purge_step=step)
+    print(f"TensorBoard logs: {log_folder(config)}", file=sys.stderr)
+    started = time.perf_counter()
+    metrics: dict = {}
+
+    def elapsed() -> float:
+        return seconds_before + time.perf_counter() - started
+
+    def save(final: bool) -> None:
+        nonlocal metrics
+        metrics = measure_student(student, prior, config, device) if config.eval_targets else {}
+        metrics["step"] = step
+        record = {**asdict(config), "step": step, "seconds": elapsed(), "finished": final}
+        record |= {"torch_version": str(torch.__version__), "threads": torch.get_num_threads(), "command": command}
+        save_checkpoint(
+            output,
+            {
+                "model": student.config.to_dict(),
+                "prior": prior.to_config(),
+                "train": record,
+                "metrics": metrics,
+                "distill": {
+                    "teacher": str(config.teacher),
+                    "teacher_path": str(teacher_path),
+                    "teacher_metrics": teacher_payload["metrics"],
+                    "teacher_train": teacher_payload["train"],
+                    "teacher_sampler": config.teacher_sampler,
+                    "teacher_steps": config.teacher_steps,
+                    "teacher_spacing": config.teacher_spacing,
+                    "sampler": "ddim",
+                    "steps": config.student_steps,
+                    "spacing": config.spacing,
+                },
+                "state_dict": student.state_dict(),
+                "optimizer": optimizer.state_dict(),
+                "data_generator": data_generator.get_state(),
+            },
+        )
+        writer.add_scalar("eval/tip_error_median", metrics.get("tip_error_median", float("nan")), step)
+
+    arm = student.arm
+    interrupted = False
+    progress = tqdm(total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True)
+    student.train()
+    try:
+        while not budget.finished(step, elapsed()):
+            for group in optimizer.param_groups:
+                group["lr"] = config.lr * budget.lr_factor(step, elapsed())
+            joints = prior.sample(config.batch, arm, generator=data_generator)  # (B, J)
+            noise = torch.randn((config.batch, student.representation.dim), generator=data_generator)  # x_T (B, D)
+            joints, noise = joints.to(device), noise.to(device)
+            targets = arm.end_effector(joints)  # (B, target_dim)
+            goal = teacher_poses(teacher, config, noise, targets)  # (B, D)
+            pose = unrolled_student(student, sampler, noise, targets)  # (B, D)
+            match = ((pose - goal) ** 2).mean(-1)  # (B,)
+            consistency, tip_miss = student.consistency_miss(pose, joints, targets)
+            loss = (match + config.tip_loss_weight * consistency).mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
+            optimizer.step()
+            step += 1
+            if step % 10 == 0:
+                writer.add_scalar("train/loss", float(loss.detach()), step)
+                writer.add_scalar("train/teacher_match", float(match.mean()), step)
+                writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean()), step)
+                writer.add_scalar("train/lr", optimizer.param_groups[0]["lr"], step)
+                progress.set_postfix(loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.sqrt().mean()):.4f}")
+            progress.update(1)
+            if step % config.save_every == 0:
+                save(final=False)
+    except KeyboardInterrupt:
+        interrupted = True
+    progress.close()
+    save(final=not interrupted)
+    writer.close()
+    state = "interrupted, resumable with --resume" if interrupted else "done"
+    print(f"{output}: {state} at step {step}; median tip error {metrics.get('tip_error_median', math.nan):.4g}")
+    if interrupted:
+        raise SystemExit(130)
+    return output
+
+
+def main(argv: list[str] | None = None) -> None:
+    save_on_interrupt()
+    arguments = sys.argv[1:] if argv is None else argv
+    try:
+        config = parse_config(argv, DistillConfig, "ikdp-distill")  # with --resume, the saved config's defaults
+        distill(config, command=shlex.join(["python", "-m", "ikdp.distill", *arguments]))
+    except (ValueError, CheckpointError) as error:
+        print(f"ikdp-distill: error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""ikdp.distill: the student's unrolled training loop is the solver's loop, and a run saves, resumes and loads."""
+
+import pytest
+import torch
+
+import ikdp
+from ikdp.checkpoint import read_checkpoint
+from ikdp.describe import describe
+from ikdp.distill import DistillConfig, distill, main, student_sampler, unrolled_student
+from ikdp.train import parse_config
+
+
+def small_config(tmp_path, teacher, **changes):
+    values = dict(
+        teacher=str(teacher),
+        student_steps=2,
+        teacher_steps=4,
+        steps=6,
+        batch=16,
+        save_every=3,
+        eval_targets=8,
+        output=str(tmp_path / "student.pt"),
+        log_dir=str(tmp_path / "tb"),
+        threads=1,
+    )
+    values.update(changes)
+    return DistillConfig(**values)
+
+
+def test_the_unrolled_student_is_the_solvers_ddim(tiny_checkpoint, monkeypatch):
+    # the loop the student is trained through must be the one it solves with, or training would optimise another map
+    monkeypatch.setattr("ikdp.denoisers.film.compiled_workspace", lambda *args: None)
+    solver = ikdp.load(tiny_checkpoint)
+    model = solver.model
+    config = DistillConfig(student_steps=3, spacing="quadratic")
+    targets = torch.tensor([[1.0, 0.5], [0.0, -2.0]])
+    noise = torch.randn((2, model.representation.dim), generator=torch.Generator().manual_seed(3))
+    with torch.no_grad():
+        unrolled = unrolled_student(model, student_sampler(model, config), noise, targets)
+    out = solver.solve(
+        targets, num_samples=1, sampler="ddim", steps=3, spacing="quadratic", initial_noise=noise[:, None]
+    )
+    assert out.timesteps == student_sampler(model, config).timesteps == [19, 5, 0]
+    torch.testing.assert_close(model.representation.decode(unrolled), out.raw_angles[:, 0], atol=1e-5, rtol=0)
+
+
+def test_a_student_saves_resumes_and_solves_in_its_own_steps(tiny_checkpoint, tmp_path):
+    straight = distill(small_config(tmp_path / "a", tiny_checkpoint))
+    distill(small_config(tmp_path / "b", tiny_checkpoint, steps=3))
+    resumed = distill(small_config(tmp_path / "b", tiny_checkpoint, steps=6, resume=True))
+    a, b = (torch.load(path, weights_only=True) for path in (straight, resumed))
+    assert b["train"]["step"] == 6
+    # --resume on the command line reads the run's own options back, the ones given override them
+    again = parse_config(["--output", str(resumed), "--resume", "--steps", "9"], DistillConfig, "ikdp-distill")
+    assert (again.teacher_steps, again.batch, again.steps) == (4, 16, 9)
+    for name, value in a["state_dict"].items():
+        torch.testing.assert_close(b["state_dict"][name], value, rtol=0, atol=0)
+    teacher = torch.load(tiny_checkpoint, weights_only=True)["state_dict"]
+    assert any(not torch.equal(a["state_dict"][name], teacher[name]) for name in teacher)  # it trained
+
+    student = ikdp.load(straight)
+    record = student.metadata["distill"]
+    assert (record["sampler"], record["steps"], record["spacing"]) == ("ddim", 2, "quadratic")
+    assert record["teacher_path"] == str(tiny_checkpoint)
+    assert set(a["metrics"]) >= {"tip_error_median", "tip_error_mean", "step"}
+    out = student.solve([[1.0, 0.5]], num_samples=4, sampler="ddim", steps=2)
+    assert out.network_evaluations == 2 and out.timesteps == [19, 0]
+    # its own (sampler, steps) take its grid; other solves keep the planar default
+    assert student.default_spacing("ddim", 2) == "quadratic" and student.default_spacing("ddim", 4) == "uniform"
+
+
+def test_describe_prints_a_students_command_and_its_teachers_arm(tiny_checkpoint, tmp_path):
+    config = small_config(tmp_path, tiny_checkpoint, steps=1, eval_targets=0)
+    path = distill(config, command="python -m ikdp.distill --steps 1")
+    text = describe([str(path)])
+    assert "`python -m ikdp.distill --steps 1`" in text and "planar, 3 links" in text
+
+
+def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
+    path = distill(small_config(tmp_path, tiny_checkpoint, steps=1000, minutes=1e-9, eval_targets=0))
+    train = read_checkpoint(path)["train"]
+    assert train["step"] == 0 and train["finished"]  # the budget was spent before the first step
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--student-steps", "0"], "student_steps: got 0, expected a positive number"),
+        (["--minutes", "-1"], "minutes: got -1.0, expected 0 (no clock) or a positive number"),
+        (["--teacher", "no_such_model"], "no_such_model"),
+    ],
+)
+def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--output", str(tmp_path / "s.pt")])
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err
+    assert "ikdp-distill: error:" in error and message in error and "Traceback" not in error
