@@ -261,6 +261,11 @@ class ConstraintControls:
             held = "never" if first is None else f"from state {first} of {states} (t = {solved.view.labels[first]})"
             lines.append(f"constraints met by {met} of {len(solved.state_violation[-1])} raw samples")
             lines.append(f"sample {choice + 1}: holds {held}")
+        if solved.pull_missed is not None:
+            lines.append(
+                f"**stay near: every pulled sample missed the target** (best {solved.pull_missed:.3g} away); "
+                "shown: the same noise solved without the pull"
+            )
         if jump is not None:
             lines.append(f"joint jump {jump:.3f} rad, largest so far **{self.largest_jump:.3f} rad**")
         self.readout.content = "  \n".join(lines) if lines else "No constraint."

@@ -16,10 +16,14 @@ import torch
 
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.chain_scene import ChainView
+from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import checkable, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
+
+NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
+REACH_FRACTION = 0.01  # a returned pose within this share of the arm's span reaches the target (1e-2: 0.04 bone
+# lengths on ikdp_n4, 12 mm on the Panda; ikdp_n4 unpulled lands 0.010 away, a pull that lost the target 0.15)
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,17 @@ class Solved:
     final_angles: np.ndarray | None = None  # (K, J) the returned joint values (refined when asked)
     state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation (checkable ones: not
     # a partial target alone)
+    pull_missed: float | None = None  # "stay near": the best error of the pulled samples, which all missed the
+    # target, so the solve shown is the one without the pull (issue 25, finding 1); None: the pull was kept or off
+
+
+def landing_error(result) -> float:
+    """The best returned pose's miss of a one-target solve: its tip error (a robot: plus its rotation, ranked as
+    the chain view ranks samples)."""
+    error = result.tip_error[0]  # (K,)
+    if result.rotation_error is not None:
+        error = error + METRES_PER_RADIAN * result.rotation_error[0]
+    return float(error.min())
 
 
 def stop_when(cancel: threading.Event):
@@ -71,21 +86,37 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
     solver = request.solver
     # x_T drawn as the solve itself would draw it first: the main solve is the same with or without a comparison
     noise = torch.randn((1, request.num_samples, solver.noise_dim), generator=generator, device=solver.device)
-    result = request.solver.solve(
-        request.target[None],  # (1, target_dim): one target
-        num_samples=request.num_samples,
-        sampler=request.sampler,
-        steps=request.steps,
-        refine_steps=request.refine_steps,
-        generator=generator,
-        return_trajectory=True,
-        return_estimates=True,
-        callback=stop_when(cancel),
-        initial_noise=noise,
-        constraints=list(request.constraints),
-    )
-    if result.stopped:
-        raise Cancelled
+    after_noise = generator.get_state()
+
+    def run(constraints) -> ikdp.SolveResult:
+        generator.set_state(after_noise)  # a second run (without the pull) draws the same sampling noise
+        result = solver.solve(
+            request.target[None],  # (1, target_dim): one target
+            num_samples=request.num_samples,
+            sampler=request.sampler,
+            steps=request.steps,
+            refine_steps=request.refine_steps,
+            generator=generator,
+            return_trajectory=True,
+            return_estimates=True,
+            callback=stop_when(cancel),
+            initial_noise=noise,
+            constraints=list(constraints),
+        )
+        if result.stopped:
+            raise Cancelled
+        return result
+
+    result = run(request.constraints)
+    pull_missed = None
+    if any(item.name == NEAR_POSE for item in request.constraints):
+        # As ikdp.track does: a pull toward the last pose that leaves every sample short of the target is not
+        # kept; the same noise solved without it reaches, and the readouts say which is shown.
+        best = landing_error(result)
+        if best > REACH_FRACTION * solver.arm.span:
+            unpulled = run(tuple(item for item in request.constraints if item.name != NEAR_POSE))
+            if landing_error(unpulled) < best:
+                result, pull_missed = unpulled, best
     solve_seconds = time.perf_counter() - started
     partial = partial_target(request.constraints)  # the errors measure what the target asks (position only, ...)
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
@@ -100,6 +131,10 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         if other.stopped:
             raise Cancelled
         compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
-    checked = checkable(request.constraints)  # a partial target alone has nothing to hold or fail: its errors say
-    violation = state_violation(request.solver, request.constraints, result) if checked else None
-    return Solved(request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation)
+    # a pull is no constraint that holds or fails (it was counted as holding for every sample, finding 1), nor is a
+    # partial target, which the errors measure
+    checked = tuple(item for item in request.constraints if item.name != NEAR_POSE)
+    violation = state_violation(request.solver, checked, result) if checkable(checked) else None
+    return Solved(
+        request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation, pull_missed
+    )
