@@ -26,7 +26,7 @@ import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.chain_scene_writer import ChainSceneWriter
+from ikdp_viz.chain_scene_writer import scene_writer_class
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel, highlight_options
 from ikdp_viz.scene_writer import (
@@ -35,7 +35,6 @@ from ikdp_viz.scene_writer import (
     PlaceTarget,
     Redraw,
     ReplayWhenDrawn,
-    SceneWriter,
     ShowError,
     ShowPrior,
     ShowSolve,
@@ -49,7 +48,6 @@ from ikdp_viz.solving import Solved, solve
 from ikdp_viz.typed_target import target_from_numbers
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
-SCENE_WRITERS = {"planar": SceneWriter, "chain": ChainSceneWriter}  # how each arm kind is drawn
 
 __all__ = ["VizApp", "camera_fit", "list_checkpoints"]
 
@@ -103,8 +101,7 @@ class VizApp:
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
             checkpoint_label=current, model_text=self._model_description(),
         )  # fmt: skip
-        writer_class = SCENE_WRITERS[arm_kind(solver).name]
-        self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
+        self.writer = scene_writer_class(solver)(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self._chosen_steps = int(self.panel.steps.value)  # the steps a sampler that can skip some takes
         self._showing_steps = False  # _show_steps is moving the slider
         self.constraint_controls = ConstraintControls(server, solver, self.writer.post, self.request_solve)

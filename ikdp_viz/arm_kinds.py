@@ -4,7 +4,7 @@ The session, the solve and the app ask `arm_kind(solver)` instead of testing the
 type: where the first target sits, how a point asked for is pulled into the workspace,
 which drawable arrays a solve becomes, how the gizmo's pose reads as a target and how
 the model is described. Drawing itself is the scene writer's (one class per kind, see
-`app.SCENE_WRITERS`). No viser here.
+`chain_scene_writer.scene_writer_class`). No viser here.
 """
 
 from __future__ import annotations

@@ -329,3 +329,10 @@ class ChainSceneWriter(SceneWriter):
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds,
         )  # fmt: skip
         return text + (f"  \n**Newest solve failed** {self.error}" if self.error else "")
+
+
+def scene_writer_class(solver) -> type[SceneWriter]:
+    """The scene writer that draws `solver`'s kind of arm."""
+    from ikdp_viz.arm_kinds import arm_kind
+
+    return {"planar": SceneWriter, "chain": ChainSceneWriter}[arm_kind(solver).name]

@@ -26,6 +26,7 @@ import numpy as np
 from ikdp_viz.clock import CLOCK_CHOICES, state_offsets
 from ikdp_viz.emphasis import TRAIL_CHOICES
 
+PROGRAM = "python -m ikdp_viz.record"  # the usage line names the module, as a user types it
 SHORTEST_STATE = 1 / 60  # seconds each state lasts at least in a recording, so the slider can reach each one
 HOLD_FINAL = 1.5  # seconds the final pose stays before the recording loops
 
@@ -67,8 +68,7 @@ def record_html(solved, settings: RecordSettings = RecordSettings()) -> str:
     """The HTML page of `solved` (solving.Solved) denoising from t = T to 0, drawn as the viewer draws it."""
     import viser
 
-    from ikdp_viz.app import SCENE_WRITERS
-    from ikdp_viz.arm_kinds import arm_kind
+    from ikdp_viz.chain_scene_writer import scene_writer_class
     from ikdp_viz.panel import build_panel
 
     if settings.seconds <= 0:
@@ -85,7 +85,7 @@ def record_html(solved, settings: RecordSettings = RecordSettings()) -> str:
         panel.highlight.value = settings.highlight
         panel.learn.trail_of.value, panel.learn.clock.value = settings.trail_of, settings.clock
         panel.show_trail.value, panel.show_estimate.value = settings.show_trail, settings.show_estimate
-        writer = SCENE_WRITERS[arm_kind(solver).name](server, panel, solver, solved.request.target, lambda _: None)
+        writer = scene_writer_class(solver)(server, panel, solver, solved.request.target, lambda _: None)
         serializer = server.get_scene_serializer()
         camera = server.initial_camera
         camera.position, camera.look_at = (
@@ -145,7 +145,8 @@ class RecordConfig:
 
     output: Path  # the HTML file to write
     ckpt: str = "ikdp_n4"  # a shipped model's name or a checkpoint's path
-    target: tuple[float, ...] | None = None  # planar x y; a robot x y z (m) [w qx qy qz]; None: the model's first
+    # planar X Y; a robot X Y Z in metres, then ROLL PITCH YAW in degrees or W X Y Z; None: the model's first
+    target: tuple[float, ...] | None = None
     samples: int = 16  # samples K
     sampler: str | None = None  # ddpm, ddim, dpmpp2m (None: the viewer's default for the model)
     steps: int | None = None  # steps of a sampler that can skip some (None: the viewer's default)
@@ -165,32 +166,40 @@ def main(argv: list[str] | None = None) -> None:
     import torch
     import tyro
 
-    import ikdp
     from ikdp.samplers import SAMPLERS
-    from ikdp_viz.__main__ import checkpoint_path
     from ikdp_viz.arm_kinds import arm_kind
-    from ikdp_viz.session import initial_target
+    from ikdp_viz.command_line import checkpoint_path, command_target, fail, load_solver, target_flag_error
     from ikdp_viz.solving import SolveRequest, solve
 
-    config = tyro.cli(RecordConfig, args=argv, description=RecordConfig.__doc__)
+    config = tyro.cli(RecordConfig, args=argv, prog=PROGRAM, description=RecordConfig.__doc__)
     torch.set_num_threads(1)
-    solver = ikdp.load(checkpoint_path(config.ckpt))
+    solver = load_solver(PROGRAM, checkpoint_path(config.ckpt))
     default_sampler, default_steps = arm_kind(solver).default_sampler
     sampler = config.sampler or default_sampler
     if sampler not in SAMPLERS:
-        raise SystemExit(f"ikdp-record: error: --sampler {sampler}: expected one of {', '.join(SAMPLERS)}")
+        fail(PROGRAM, f"--sampler {sampler}: expected one of {', '.join(SAMPLERS)}")
+    if not config.seconds > 0:
+        fail(PROGRAM, f"--seconds {config.seconds}: expected a positive duration")
+    try:
+        target = command_target(solver, config.target) if config.target is not None else None
+    except ValueError as error:
+        fail(PROGRAM, target_flag_error(config.target, error))
     steps = (config.steps or default_steps) if SAMPLERS[sampler].supports_steps else None
     request = SolveRequest(
-        solver=solver, target=initial_target(solver, config.target), num_samples=config.samples, sampler=sampler,
-        steps=steps, refine_steps=config.refine_steps, seed=config.seed, arrival=time.perf_counter(), animate=False,
+        solver=solver, target=arm_kind(solver).initial_target(solver, target), num_samples=config.samples,
+        sampler=sampler, steps=steps, refine_steps=config.refine_steps, seed=config.seed,
+        arrival=time.perf_counter(), animate=False,
     )  # fmt: skip
     solved = solve(request, threading.Event())
     settings = RecordSettings(
         highlight=config.highlight, trail_of=config.trail_of, show_estimate=config.show_estimate,
         clock=config.clock, seconds=config.seconds,
     )  # fmt: skip
-    config.output.parent.mkdir(parents=True, exist_ok=True)
-    config.output.write_text(record_html(solved, settings), encoding="utf-8")
+    try:
+        config.output.parent.mkdir(parents=True, exist_ok=True)
+        config.output.write_text(record_html(solved, settings), encoding="utf-8")
+    except OSError as error:
+        fail(PROGRAM, f"--output {config.output}: cannot write it ({error.strerror or error})")
     size = config.output.stat().st_size / 1e6
     print(f"wrote {config.output} ({size:.1f} MB): open it in a browser, no server needed")
 

@@ -101,8 +101,8 @@ def main(argv: list[str] | None = None) -> None:
 
     import ikdp
     from ikdp.shipped import shipped_dir
-    from ikdp_viz.__main__ import checkpoint_path
     from ikdp_viz.app import VizApp, list_checkpoints
+    from ikdp_viz.command_line import checkpoint_path
 
     torch.set_num_threads(1)
     path = checkpoint_path(args.ckpt)

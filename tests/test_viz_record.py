@@ -69,3 +69,35 @@ def test_the_record_command_writes_a_page_for_a_robot(tiny_chain_checkpoint, tmp
     assert data["durationSeconds"] > 1.0 and "no server needed" in capsys.readouterr().out
     names = {message.get("name") for _, message in data["messages"]}
     assert "/recording/target" in names and any(str(name).startswith("/samples/robot/") for name in names)
+
+
+def test_the_record_command_answers_a_bad_checkpoint_in_one_line_and_names_itself(tmp_path):
+    """Finding 14 (issue 25): `--ckpt nope` printed a traceback; the usage line showed a file path; the help
+    offered a robot target only as a quaternion."""
+    import subprocess
+    import sys
+
+    from test_viz_cli import REPO, with_repo_on_path
+
+    command = [sys.executable, "-m", "ikdp_viz.record", "--output", str(tmp_path / "x.html")]
+    result = subprocess.run([*command, "--ckpt", "nope"], capture_output=True, text=True, timeout=120,
+                            env=with_repo_on_path(), cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("python -m ikdp_viz.record: error: nope"), result.stderr
+    assert "Traceback" not in result.stderr and not (tmp_path / "x.html").exists()
+    helped = subprocess.run([*command, "--help"], capture_output=True, text=True, timeout=120, env=with_repo_on_path(),
+                            cwd=REPO)  # fmt: skip
+    assert "usage: python -m ikdp_viz.record" in helped.stdout and "ROLL PITCH YAW" in helped.stdout
+    bad_target = subprocess.run([*command, "--target", "1", "2", "3"], capture_output=True, text=True, timeout=120,
+                                env=with_repo_on_path(), cwd=REPO)  # fmt: skip
+    assert bad_target.returncode == 2 and "--target 1 2 3: target: a planar arm's target is x y" in bad_target.stderr
+
+
+def test_the_record_command_takes_a_robot_target_in_roll_pitch_yaw(tiny_chain_checkpoint, tmp_path, capsys):
+    from ikdp_viz.record import main
+
+    output = tmp_path / "panda.html"
+    main(["--ckpt", str(tiny_chain_checkpoint), "--output", str(output), "--samples", "2", "--seconds", "1",
+          "--target", "0.4", "0.1", "0.5", "180", "0", "0"])  # fmt: skip
+    assert "target x = +400, y = +100, z = +500 mm" in str(recording(output.read_text(encoding="utf-8")))
