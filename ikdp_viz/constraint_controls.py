@@ -35,8 +35,8 @@ from ikdp_viz.constraint_scene import (
     holds,
     overlay_segments,
 )
+from ikdp_viz.messages import Call
 from ikdp_viz.scene import line_colors
-from ikdp_viz.scene_writer import Call
 
 OBSTACLE_COLOR = (200, 60, 60)
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
@@ -55,6 +55,7 @@ class ConstraintControls:
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
         self.largest_jump = 0.0
+        self.highlight_set: tuple | None = None  # (panel, number) follow mode wrote into the highlight dropdown
         self.overlay = None
         self.target_marks = None  # the free axis and its ring through the target (a child of the target's gizmo)
         self.build(solver)
@@ -139,6 +140,13 @@ class ConstraintControls:
     def _on_near(self) -> None:
         if not (self.stay_near.value or self.follow.value):
             self.largest_jump = 0.0
+        if not self.follow.value and self.highlight_set is not None:
+            # follow mode had set the highlight to the sample it kept: give "best" back (finding 8), unless the
+            # user chose another sample since
+            panel, number = self.highlight_set
+            self.highlight_set = None
+            if panel.highlight.value == number:
+                panel.highlight.value = "best"
         self.on_change()
 
     # ------------------------------------------------------------------ what a solve asks for
@@ -163,12 +171,12 @@ class ConstraintControls:
             self.target_marks = None
         if self.target_kind is None:
             return
-        writer.gizmo.disable_rotations = kind == "position only"
+        writer.view.gizmo.disable_rotations = kind == "position only"
         axis = TARGET_KINDS.get(kind)
         if kind == "full pose" or axis is None:
             return
         self.target_marks = self.server.scene.add_line_segments(
-            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.reach), FREE_AXIS_COLOR,
+            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.view.reach), FREE_AXIS_COLOR,
             thickness=4.0, thickness_units="screen",
         )  # fmt: skip
 
@@ -225,11 +233,14 @@ class ConstraintControls:
 
     # ------------------------------------------------------------------ after a solve
 
-    def after_solve(self, solved, panel) -> None:
-        """Worker thread, once a solve is posted: keep the pose (follow: the nearest sample), write the readouts."""
+    def after_solve(self, solved, panel, writer) -> None:
+        """Drawing loop's thread, as a solve goes on screen: keep the pose (follow: the nearest sample that
+        reaches, highlighted), write the readouts."""
         with self.model_lock:
+            writer.followed = bool(self.follow.value)
             if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
                 self._after_solve(solved, panel)
+                self._draw_overlay(solved)
 
     def _after_solve(self, solved, panel) -> None:
         view = solved.view
@@ -241,11 +252,11 @@ class ConstraintControls:
         if following:
             self.largest_jump = max(self.largest_jump, jump)
             panel.highlight.value = str(choice + 1)
+            self.highlight_set = (panel, str(choice + 1))
         elif panel.highlight.value != "best":
             choice = min(int(panel.highlight.value), len(errors)) - 1
         self.last_pose = solved.final_angles[choice].copy()
         self._write_readout(solved, choice, jump if following else None)
-        self.post(Call(lambda writer: self._draw_overlay(writer.solved)))
 
     def _write_readout(self, solved, choice: int, jump: float | None) -> None:
         lines = []

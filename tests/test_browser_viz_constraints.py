@@ -87,7 +87,7 @@ def test_picking_a_partial_target_in_the_page(browser, tiny_chain_checkpoint):
         assert canvas_changed_share(page, before, after) > 0.002  # the free axis and its ring are drawn
         page.get_by_label("target", exact=True).click()
         page.get_by_role("option", name="position only", exact=True).click()
-        assert wait_for(lambda: app.writer.gizmo.disable_rotations)  # its rotation rings are hidden
+        assert wait_for(lambda: app.writer.view.gizmo.disable_rotations)  # its rotation rings are hidden
         settle(app)
         page.get_by_text("Position only", exact=True).first.wait_for(timeout=BROWSER_TIMEOUT * 1000)
         assert not errors, f"{errors[:3]} ({len(errors)} in all)"

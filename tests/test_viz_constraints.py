@@ -10,7 +10,7 @@ from viz_helpers import drag_gizmo, running_app, settle
 
 import ikdp
 from ikdp.rotations import quaternion_to_matrix
-from ikdp_viz.chain_scene_writer import GHOST_OPACITY, VIOLATING_GHOST_OPACITY
+from ikdp_viz.chain_kind import GHOST_OPACITY, VIOLATING_GHOST_OPACITY
 from ikdp_viz.constraint_scene import (
     HOLDS,
     HOLDS_FAINT,
@@ -103,11 +103,11 @@ def test_every_sample_on_screen_is_coloured_by_constraint_and_counted(app):
         assert f"hold** for {int(met.sum())} of {K} samples at this step" in app.panel.readout_text.content
         expected = np.where(met[:, None], np.array(HOLDS_OTHERS), np.array(VIOLATES_OTHERS))
         others = np.arange(K) != app.highlight_index()
-        assert np.array_equal(writer._colors[state][others], expected[others])  # each arm's own colour
+        assert np.array_equal(writer.frame.palette.arms[state][others], expected[others])  # each arm's own colour
     assert "constraints hold at the step shown" in app.panel.learn.legend.content
     controls.color_states.value = False  # back to the grey samples and the blue highlighted one
     settle(app)
-    assert not np.isin(writer._colors[-1], [HOLDS_OTHERS, VIOLATES_OTHERS]).all(axis=-1).any()
+    assert not np.isin(writer.frame.palette.arms[-1], [HOLDS_OTHERS, VIOLATES_OTHERS]).all(axis=-1).any()
     assert "(green" not in app.panel.readout_text.content and controls.overlay is None
     assert "constraints hold" not in app.panel.learn.legend.content
 
@@ -167,7 +167,7 @@ def test_a_robot_gets_the_same_folder_with_its_joint_names_and_spheres(tiny_chai
         assert not holds(violation[0]).all()  # the noise at t = T: some robots break the lock
         for state in (0, len(violation) - 1):
             app.show_state(state)
-            factors = writer.ghosts[0].batched_opacities
+            factors = writer.view.ghosts[0].batched_opacities
             met = holds(violation[state])
             assert np.allclose(factors[~met], 1.0)  # the node's full VIOLATING_GHOST_OPACITY
             assert np.allclose(factors[met], GHOST_OPACITY / VIOLATING_GHOST_OPACITY)
@@ -181,11 +181,11 @@ def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_
         app.panel.samples.value = 4
         settle(app)
         controls, writer = app.constraint_controls, app.writer
-        assert controls.target_kind.value == "full pose" and not writer.gizmo.disable_rotations
+        assert controls.target_kind.value == "full pose" and not writer.view.gizmo.disable_rotations
         controls.target_kind.value = "position only"
         settle(app)
         assert [c.name for c in app.solved.request.constraints] == ["position_only"]
-        assert writer.gizmo.disable_rotations  # the gizmo's rotation asks nothing: its rings are hidden
+        assert writer.view.gizmo.disable_rotations  # the gizmo's rotation asks nothing: its rings are hidden
         view = app.solved.view
         assert view.rotation_measure == "none" and not view.rotation_error.any()
         assert "Position only" in app.panel.readout_text.content and "°" not in app.panel.readout_text.content
@@ -194,7 +194,7 @@ def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_
         settle(app)
         free = app.solved.request.constraints[0]
         assert free.name == "free_axis" and tuple(free.axis) == (0.0, 0.0, 1.0)
-        assert not writer.gizmo.disable_rotations and controls.target_marks is not None  # the axis is drawn
+        assert not writer.view.gizmo.disable_rotations and controls.target_marks is not None  # the axis is drawn
         assert controls.target_marks.name == "/target/free_axis"  # a child of the gizmo: it turns with it
         segments = controls.target_marks.points
         assert np.allclose(np.cross(segments[0, 1] - segments[0, 0], [0, 0, 1]), 0)  # along the hand's z
