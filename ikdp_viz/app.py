@@ -24,13 +24,12 @@ import numpy as np
 import viser
 
 import ikdp
-from ikdp.samplers import SAMPLERS, sampler_names
+from ikdp.samplers import sampler_names
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.camera import camera_fit
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.downloads import Downloads
 from ikdp_viz.messages import (
-    NewModel,
     PlaceTarget,
     Redraw,
     ReplayWhenDrawn,
@@ -40,10 +39,11 @@ from ikdp_viz.messages import (
     ShowState,
     TogglePlay,
 )
-from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints
-from ikdp_viz.panel import DEFAULT_DURATION, build_panel, highlight_options
+from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
+from ikdp_viz.panel import DEFAULT_DURATION, build_panel
+from ikdp_viz.sampling_controls import SamplingControls
 from ikdp_viz.scene_writer import SceneWriter
-from ikdp_viz.session import Session, initial_target
+from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
 from ikdp_viz.typed_target import target_from_numbers
@@ -69,7 +69,6 @@ class VizApp:
     ):
         self.server = server
         self.session = Session(solver, target)
-        self.checkpoint_folder = checkpoint_folder
         given = Path(solver.metadata.get("path", "model.pt"))
         # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
         # planar session could not open)
@@ -82,14 +81,13 @@ class VizApp:
             checkpoint_label=current, model_text=self._model_description(),
         )  # fmt: skip
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
-        self._chosen_steps = int(self.panel.steps.value)  # the steps a sampler that can skip some takes
-        self._showing_steps = False  # _show_steps is moving the slider
+        self.sampling = SamplingControls(self.panel, lambda: self.request_solve())
         self.constraint_controls = ConstraintControls(server, solver, self.writer.post, self.request_solve)
         # on the drawing loop's thread: follow mode picks the highlighted sample before the frame that shows it
         self.writer.after_solve = lambda solved: self.constraint_controls.after_solve(solved, self.panel, self.writer)
         self.downloads = Downloads(self.writer, self.panel)
         self._wire_panel()
-        self._show_steps()
+        self.sampling.show_steps()
         server.on_client_connect(lambda client: self.refresh_checkpoints())
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
         if solve_now:
@@ -115,13 +113,9 @@ class VizApp:
         """Index of the state on screen, 0 (pure noise) .. S (final)."""
         return self.writer.state
 
-    @property
-    def playing(self) -> bool:
-        return self.writer.playing
+    playing = property(lambda self: self.writer.playing)
 
-    @property
-    def latencies(self):
-        return self.writer.latencies
+    latencies = property(lambda self: self.writer.latencies)  # (arrival, drawn, newest) per solve drawn
 
     def highlight_index(self) -> int:
         return self.writer.highlight_index()
@@ -164,7 +158,7 @@ class VizApp:
                 arrival=arrival,
                 animate=animate,
                 constraints=constraints,
-                chosen_steps=self._chosen_steps,
+                chosen_steps=self.sampling.chosen_steps,
             )
             return self.worker.submit(lambda cancel: solve(request, cancel), self._solved, self._failed)
 
@@ -225,12 +219,12 @@ class VizApp:
         panel.learn.share.on_click(self.downloads.on_share)
         panel.learn.target.go.on_click(lambda _: self.move_typed_target())
         panel.learn.compare.on_update(lambda _: self.request_solve())
-        panel.samples.on_update(lambda _: self._on_samples())
-        panel.sampler.on_update(lambda _: self._on_sampler())
-        panel.steps.on_update(lambda _: self._on_steps())
+        panel.samples.on_update(lambda _: self.sampling.on_samples())
+        panel.sampler.on_update(lambda _: self.sampling.on_sampler())
+        panel.steps.on_update(lambda _: self.sampling.on_steps())
         panel.refine_steps.on_update(lambda _: self.request_solve())
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
-        panel.refine.on_update(lambda _: self._on_refine())
+        panel.refine.on_update(lambda _: self.sampling.on_refine())
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
 
     def _post(self, event: viser.GuiEvent, message) -> None:
@@ -276,48 +270,6 @@ class VizApp:
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))
 
-    def _on_samples(self) -> None:
-        options = highlight_options(int(self.panel.samples.value))
-        current = self.panel.highlight.value
-        self.panel.highlight.options = options
-        if current not in options:
-            self.panel.highlight.value = "best"
-        self.request_solve()
-
-    def _on_sampler(self) -> None:
-        self._show_steps()
-        self.request_solve()
-
-    def _on_steps(self) -> None:
-        steps = self.panel.steps
-        if self._showing_steps or (steps.disabled and int(steps.value) == steps.max):
-            return  # _show_steps, or the writer fitting the slider to a new model's T: no one's choice
-        self._chosen_steps = int(steps.value)  # a script's or the command line's, for when a sampler can skip
-        if steps.disabled:
-            self._show_steps()  # this sampler takes all T: that is what the slider says
-        else:
-            self.request_solve()
-
-    def _show_steps(self) -> None:
-        """The steps slider: the user's choice for a sampler that can skip steps; else disabled at T, the steps
-        it does take (issue 19: DDPM showed a stale number). The user's choice comes back with such a sampler."""
-        steps = self.panel.steps
-        takes_all = not SAMPLERS[str(self.panel.sampler.value)].supports_steps
-        if takes_all and not steps.disabled:
-            self._chosen_steps = int(steps.value)
-        steps.disabled = takes_all
-        shown = steps.max if takes_all else min(self._chosen_steps, steps.max)
-        if steps.value != shown:
-            self._showing_steps = True  # not a user's change: no solve of its own
-            try:
-                steps.value = shown
-            finally:
-                self._showing_steps = False
-
-    def _on_refine(self) -> None:
-        self.panel.refine_steps.disabled = not self.panel.refine.value
-        self.request_solve()
-
     def _model_description(self) -> str:
         return arm_kind(self.solver).model_text(self.solver)
 
@@ -346,31 +298,5 @@ class VizApp:
             self.load_checkpoint(self.checkpoints[label])
 
     def load_checkpoint(self, path: Path) -> bool:
-        """Switch to another model: reload, redraw the scene for its arm, solve again."""
-        try:
-            solver = ikdp.load(path, device=self.solver.device)
-        except (ikdp.CheckpointError, OSError, RuntimeError) as error:
-            self.panel.model_text.content = f"**Could not load** {error}  \n\n" + self._model_description()
-            self.panel.checkpoint.value = self._current_checkpoint_label()
-            return False
-        if arm_kind(solver) is not arm_kind(self.solver):  # the scene writer draws one kind of arm
-            self.panel.model_text.content = (
-                f"**Could not load** {path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
-                f"{arm_kind(self.solver).name} arm; start another with --ckpt {path}  \n\n" + self._model_description()
-            )
-            self.panel.checkpoint.value = self._current_checkpoint_label()
-            return False
-        with self.session.lock:
-            previous = self.session.target
-            self.session.solver = solver
-            self.constraint_controls.rebuild(solver)
-            self.session.target = initial_target(solver, previous)
-            self.writer.post(NewModel(solver, self.session.target))
-            self.panel.model_text.content = self._model_description()
-            self.panel.checkpoint.value = self._current_checkpoint_label()
-            self.panel.steps.max = solver.timesteps  # here too, not only on the writer's thread: _show_steps reads it
-            self._show_steps()  # the new model's T, when its sampler takes all steps
-            # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
-            same_kind_of_target = np.shape(previous) == np.shape(self.session.target)
-            self.move_target(previous if same_kind_of_target else self.session.target)
-        return True
+        """Switch to another model: reload, redraw the scene for its arm, solve again (model_choices.py)."""
+        return switch_model(self, path)

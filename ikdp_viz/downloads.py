@@ -27,7 +27,7 @@ def export_picture(solved, settings, solver):
     from ikdp_viz.style import TARGET_RED
 
     kind, view, request = arm_kind(solver), solved.view, solved.request
-    highlight = highlighted_sample(settings.highlight, view)
+    highlight = highlighted_sample(settings.highlight, solved)
     constraint_colors = settings.color_by_constraint and solved.state_violation is not None
     palette = kind.palette(solved, highlight, settings.trail_of, constraint_colors)
     polylines, target, circle, _ = kind.flat_picture(solved)

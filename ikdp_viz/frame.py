@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ikdp_viz.clock import CLOCK_CHOICES
-from ikdp_viz.constraint_scene import met_text
+from ikdp_viz.constraint_scene import holds, met_text
 from ikdp_viz.emphasis import TRAIL_CHOICES
 from ikdp_viz.legend import Entry
 from ikdp_viz.scene import compare_curve, error_curves
@@ -45,21 +45,33 @@ class ViewSettings:
         )  # fmt: skip
 
 
-def highlighted_sample(choice: str, view) -> int:
-    """The 0-based sample the highlight dropdown's `choice` names for `view`: its best, or number - 1 (at most K)."""
-    if choice == HIGHLIGHT_CHOICES:
+def best_sample(solved) -> int:
+    """The sample "best" names: the smallest error at t = 0 among those meeting the constraints there (finding 4:
+    "best" highlighted a robot through an obstacle); of all samples when none meets them, or there are none."""
+    view, violation = solved.view, getattr(solved, "state_violation", None)
+    if violation is None or not holds(violation[-1]).any():
         return view.best_sample()
-    return min(int(choice), view.num_samples) - 1
+    return int(np.argmin(np.where(holds(violation[-1]), view.final_error, np.inf)))
 
 
-def highlight_reason(settings: ViewSettings, highlight: int, view) -> str:
+def highlighted_sample(choice: str, solved) -> int:
+    """The 0-based sample the highlight dropdown's `choice` names for `solved`: its best, or number - 1 (at most K)."""
+    if choice == HIGHLIGHT_CHOICES:
+        return best_sample(solved)
+    return min(int(choice), solved.view.num_samples) - 1
+
+
+def highlight_reason(settings: ViewSettings, highlight: int, solved) -> str:
     """Why this sample is the one followed, for the readouts: best, kept by follow mode, or chosen in the panel."""
     if settings.followed:
         return "kept by follow mode (the nearest that reaches)"
+    violation = getattr(solved, "state_violation", None)
+    meeting = 0 if violation is None else int(holds(violation[-1]).sum())
+    best = "the best" if violation is None or meeting == 0 else f"the best of the {meeting} meeting the constraints"
     if settings.highlight == HIGHLIGHT_CHOICES:
-        return "the best"
-    best = "" if highlight != view.best_sample() else "; it is also the best"
-    return f"chosen in the panel's highlight{best}"
+        return best
+    also = "" if highlight != best_sample(solved) else f"; it is also {best}"
+    return f"chosen in the panel's highlight{also}"
 
 
 @dataclass(frozen=True)
@@ -95,11 +107,11 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     (None when still); `palettes` caches the kind's colours per (solve, highlight, settings)."""
     view = solved.view
     state = int(np.clip(state, 0, view.num_states - 1))
-    highlight = highlighted_sample(settings.highlight, view)
+    highlight = highlighted_sample(settings.highlight, solved)
     constraint_colors = settings.color_by_constraint and solved.state_violation is not None
     palette = palettes.get(kind, solved, highlight, settings.trail_of, constraint_colors)
     light = animating_to is not None and state < animating_to
-    text = kind.solve_text(solved, state, highlight, highlight_reason(settings, highlight, view), error)
+    text = kind.solve_text(solved, state, highlight, highlight_reason(settings, highlight, solved), error)
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)

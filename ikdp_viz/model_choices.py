@@ -8,9 +8,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.messages import NewModel
+from ikdp_viz.session import initial_target
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
@@ -74,3 +78,37 @@ class ModelChoices:
             if self._kinds[key] == wanted:
                 kept[label] = path
         return kept
+
+
+def switch_model(app, path: Path) -> bool:
+    """Load `path` into `app` (a VizApp): its panel, its scene for the arm, a solve of the old target pulled into the
+    new workspace. False, with the reason in the Model folder, when the file cannot be used or drives another kind
+    of arm."""
+    described = arm_kind(app.solver).model_text(app.solver)
+    try:
+        solver = ikdp.load(path, device=app.solver.device)
+    except (ikdp.CheckpointError, OSError, RuntimeError) as error:
+        app.panel.model_text.content = f"**Could not load** {error}  \n\n" + described
+        app.panel.checkpoint.value = app._current_checkpoint_label()
+        return False
+    if arm_kind(solver) is not arm_kind(app.solver):  # the scene writer draws one kind of arm
+        app.panel.model_text.content = (
+            f"**Could not load** {path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
+            f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}  \n\n" + described
+        )
+        app.panel.checkpoint.value = app._current_checkpoint_label()
+        return False
+    with app.session.lock:
+        previous = app.session.target
+        app.session.solver = solver
+        app.constraint_controls.rebuild(solver)
+        app.session.target = initial_target(solver, previous)
+        app.writer.post(NewModel(solver, app.session.target))
+        app.panel.model_text.content = arm_kind(app.solver).model_text(app.solver)
+        app.panel.checkpoint.value = app._current_checkpoint_label()
+        app.panel.steps.max = solver.timesteps  # here too, not only on the loop's thread: show_steps reads it
+        app.sampling.show_steps()  # the new model's T, when its sampler takes all steps
+        # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
+        same_kind_of_target = np.shape(previous) == np.shape(app.session.target)
+        app.move_target(previous if same_kind_of_target else app.session.target)
+    return True

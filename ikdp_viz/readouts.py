@@ -26,10 +26,10 @@ def sample_note(view, highlight: int, reason: str | None, error_name: str, raw_b
     `reason` says why this sample is followed ("the best", "kept by follow mode", "chosen in the panel");
     None: "the best" when it is, else nothing.
     """
-    best = highlight == view.best_sample()
     if reason is None:
-        reason = "the best" if best else ""
-    if reason == "the best" and best:
+        reason = "the best" if highlight == view.best_sample() else ""
+    best = reason.startswith("the best")
+    if best:
         reason += f" by refined {error_name}" if view.refined else f" by {error_name} at t = 0"
     note = f" ({reason})" if reason else ""
     raw_line = ""

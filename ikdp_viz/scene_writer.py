@@ -111,7 +111,7 @@ class SceneWriter:
         """The 0-based sample the highlight dropdown names, for the solve on screen (0 before any)."""
         if self.solved is None:
             return 0
-        return highlighted_sample(str(self.panel.highlight.value), self.solved.view)
+        return highlighted_sample(str(self.panel.highlight.value), self.solved)
 
     def _failed_frame(self) -> None:
         self.animation = None  # a failed frame is reported; the loop goes on, still

@@ -45,7 +45,7 @@ def test_locking_a_joint_and_dropping_an_obstacle_in_the_page(browser):
         assert wait_for(lambda: controls.lock_boxes[0].value)
         settle(app)
         assert wait_for(lambda: any(c.name == "locked_joints" for c in app.solved.request.constraints))
-        assert np.all(app.solved.final_angles[:, 0] == np.float32(controls.lock_values[0].value))
+        assert np.all(app.solved.final_angles[:, 0] == np.float32(np.radians(controls.lock_values[0].value)))
         before = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         page.get_by_text("Add obstacle", exact=True).click()
         assert wait_for(lambda: len(controls.obstacles) == 1 and controls.obstacles[0]["nodes"])

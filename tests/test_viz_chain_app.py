@@ -212,3 +212,21 @@ def test_a_robot_exports_its_denoising_as_a_gif_and_a_labelled_png(app, tmp_path
     red = (image[..., 0] > 180) & (image[..., 1] < 80) & (image[..., 2] < 80)  # the target's cross
     assert blue.sum() > 50 and red.sum() > 20
     assert "mm" in gif.name or gif.name.startswith("ikdp_ddpm_K")
+
+
+def test_the_robots_meshes_skeletons_and_hand_are_drawn_from_the_same_state(app):
+    """Finding 9 (issue 25): at the last state the meshes and hand showed the returned (refined) pose while the
+    skeletons showed the sampler's last state: stray skeleton lines."""
+    from ikdp_viz.chain_scene import gizmo_pose
+
+    app.panel.refine.value = True
+    settle(app)
+    view, writer = app.solved.view, app.writer
+    assert not np.allclose(view.final_joint_values, view.joint_values[-1])  # the two differ for this model
+    for state in (view.num_states // 2, view.num_states - 1):
+        app.show_state(state)
+        highlight = app.highlight_index()
+        skeleton = writer.view.skeletons.points.reshape(view.num_samples, -1, 2, 3)[highlight]
+        hand, _ = gizmo_pose(app.solver.arm, view.joint_values[state, highlight])
+        assert np.allclose(writer.view.hand.position, hand, atol=1e-5)
+        assert np.allclose(skeleton[-1, 1], writer.view.hand.position, atol=1e-4)  # the skeleton ends at the hand

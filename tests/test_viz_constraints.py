@@ -82,10 +82,10 @@ def app(tiny_checkpoint):
 
 def test_a_locked_joint_holds_in_every_returned_pose_and_is_reported(app):
     controls = app.constraint_controls
-    controls.lock_values[1].value = 0.8
+    controls.lock_values[1].value = 45.0  # degrees (finding 5)
     controls.lock_boxes[1].value = True  # asks for a solve
     settle(app)
-    assert np.array_equal(app.solved.final_angles[:, 1], np.full(K, np.float32(0.8)))
+    assert np.array_equal(app.solved.final_angles[:, 1], np.full(K, np.float32(np.radians(45.0))))
     assert app.solved.state_violation.shape == (len(app.solved.view.labels), K)
     assert "holds from state" in controls.readout.content
     assert controls.overlay is not None  # the coloured states are drawn
@@ -152,14 +152,14 @@ def test_a_robot_gets_the_same_folder_with_its_joint_names_and_spheres(tiny_chai
         settle(app)
         controls = app.constraint_controls
         assert controls.lock_boxes[6].label == "lock panda_joint7"
-        controls.lock_values[6].value = 1.0
+        controls.lock_values[6].value = 57.3  # degrees (finding 5)
         controls.lock_boxes[6].value = True
         controls.add_obstacle(position=(0.3, 0.0, 0.4), radius=0.08)
         settle(app)
         assert app.writer.error is None, app.writer.error
         names = [c.name for c in app.solved.request.constraints]
         assert names == ["locked_joints", "obstacles"]
-        assert np.all(app.solved.final_angles[:, 6] == np.float32(1.0))
+        assert np.all(app.solved.final_angles[:, 6] == np.float32(np.radians(57.3)))
         assert controls.overlay is not None
         # the see-through robots that break a constraint at the step shown are drawn denser than those that hold
         writer = app.writer
@@ -213,7 +213,7 @@ def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_
         settle(app)
         names = sorted(c.name for c in app.solved.request.constraints)
         assert names == ["free_axis", "locked_joints", "near_pose"]
-        assert np.all(app.solved.final_angles[:, 6] == np.float32(controls.lock_values[6].value))
+        assert np.all(app.solved.final_angles[:, 6] == np.float32(np.radians(controls.lock_values[6].value)))
         controls.target_kind.value = "full pose"
         settle(app)
         assert controls.target_marks is None and app.solved.view.rotation_measure == "rotation"
@@ -243,3 +243,66 @@ def test_a_pulled_solve_still_reaches_the_target_or_says_it_was_dropped(mode):
             if app.solved.pull_missed is not None:
                 assert "without the pull" in app.constraint_controls.readout.content
         assert dropped > 0  # the pull did miss on this path (0.15 away by its end), so the rule was exercised
+
+
+def test_lock_fields_are_degrees_within_the_joints_limits_and_any_angle_wraps():
+    """Finding 5 (issue 25): "θ1 value" took 90 and used 90 rad; a robot's lock fields were radians beside targets
+    in degrees, and a value past a limit was used as typed."""
+    from ikdp_viz.lock_fields import lock_fields
+
+    planar = lock_fields(ikdp.PlanarArm([1.0, 1.0]))
+    assert planar[0].label == "θ1 (°)" and planar[0].wraps
+    assert planar[0].joint_value(90.0) == (pytest.approx(np.pi / 2), None)
+    value, note = planar[0].joint_value(270.0)
+    assert value == pytest.approx(-np.pi / 2) and "wrapped" in note
+    panda = lock_fields(ikdp.load_robot("panda"))
+    limits = np.degrees(ikdp.load_robot("panda").joint_limits.numpy())
+    assert panda[3].label == "panda_joint4 (°)" and panda[3].low == pytest.approx(limits[3, 0], abs=0.01)
+    value, note = panda[3].joint_value(10.0)  # joint 4's upper limit is about -4 degrees
+    assert value == pytest.approx(np.radians(panda[3].high)) and "outside" in note
+
+
+def test_a_lock_past_its_limit_is_clamped_and_said(tiny_chain_checkpoint):
+    with running_app(ikdp.load(tiny_chain_checkpoint), solve_now=False, animation_seconds=0.0) as app:
+        app.panel.samples.value = 2
+        settle(app)
+        controls = app.constraint_controls
+        controls.lock_values[3].value = 10.0  # past panda_joint4's upper limit (a script may set it; the page cannot)
+        controls.lock_boxes[3].value = True
+        settle(app)
+        assert np.allclose(app.solved.final_angles[:, 3], np.radians(controls.fields[3].high), atol=1e-6)
+        assert "outside" in controls.readout.content
+
+
+def test_best_is_a_sample_that_meets_the_constraints_and_none_meeting_is_explained(app):
+    """Finding 4 (issue 25): "best" highlighted a sample through the obstacle while others cleared it, and 0 of 16
+    met with no hint why."""
+    from ikdp_viz.frame import best_sample
+
+    controls = app.constraint_controls
+    controls.add_obstacle(position=(0.9, 0.6, 0.0), radius=0.5)
+    settle(app)
+    final = holds(app.solved.state_violation[-1])
+    assert final.any() and not final.all(), final  # this case has both kinds
+    assert final[app.highlight_index()] and app.highlight_index() == best_sample(app.solved)
+    assert "the best of the" in app.panel.readout_text.content  # "... meeting the constraints"
+    controls.clear_obstacles()
+    controls.add_obstacle(position=(0.0, 0.0, 0.0), radius=0.9)  # over the base: every link touches it
+    settle(app)
+    assert not holds(app.solved.state_violation[-1]).any()
+    assert "no sample meets the constraints" in controls.readout.content and "obstacle" in controls.readout.content
+
+
+def test_a_lock_that_keeps_the_hand_from_the_target_says_so():
+    """Finding 16 (issue 25): a lock that made the target unreachable gave no message."""
+    from viz_helpers import shipped_solver_or_skip
+
+    with running_app(shipped_solver_or_skip("ikdp_n4"), target=(3.0, 0.0), animation_seconds=0.0) as app:
+        settle(app)
+        controls = app.constraint_controls
+        assert "no sample reaches" not in controls.readout.content
+        controls.lock_values[0].value = 180.0  # the first link points away: the tip reaches x = 2 at most
+        controls.lock_boxes[0].value = True
+        settle(app)
+        assert app.solved.view.final_error.min() > 0.5
+        assert "no sample reaches the target with these locks" in controls.readout.content
