@@ -143,6 +143,7 @@ def main(argv: list[str] | None = None) -> None:
             checkpoints=list_checkpoints(shipped_dir(), path),
             checkpoint_folder=shipped_dir(),
             solve_now=False,
+            wait_for_tab=True,  # the first solve waits at pure noise and plays when the first tab opens
         )
         apply_settings(app, config)
         port = server.get_port()

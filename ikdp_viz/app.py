@@ -37,6 +37,7 @@ from ikdp_viz.messages import (
     ShowPrior,
     ShowSolve,
     ShowState,
+    TabOpened,
     TogglePlay,
 )
 from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
@@ -66,6 +67,7 @@ class VizApp:
         target: tuple[float, float] | None = None,
         solve_now: bool = True,
         animation_seconds: float = DEFAULT_DURATION,
+        wait_for_tab: bool = False,
     ):
         self.server = server
         self.session = Session(solver, target)
@@ -81,6 +83,7 @@ class VizApp:
             checkpoint_label=current, model_text=self._model_description(),
         )  # fmt: skip
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
+        self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
         self.sampling = SamplingControls(self.panel, lambda: self.request_solve())
         self.constraint_controls = ConstraintControls(server, solver, self.writer.post, self.request_solve)
         # on the drawing loop's thread: follow mode picks the highlighted sample before the frame that shows it
@@ -88,7 +91,7 @@ class VizApp:
         self.downloads = Downloads(self.writer, self.panel)
         self._wire_panel()
         self.sampling.show_steps()
-        server.on_client_connect(lambda client: self.refresh_checkpoints())
+        server.on_client_connect(self._on_connect)
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
         if solve_now:
             self.move_target(self.session.target)
@@ -126,6 +129,10 @@ class VizApp:
                     "estimate_lines"}:  # fmt: skip
             return getattr(self.writer.view, name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def _on_connect(self, client) -> None:
+        self.refresh_checkpoints()
+        self.writer.post(TabOpened(client))  # the loop plays a solve no one saw, and hides viser's WebGL toast
 
     # ---------------------------------------------------------------- requests
 

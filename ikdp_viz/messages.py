@@ -68,6 +68,11 @@ class ShowError:
 
 
 @dataclass(frozen=True)
+class TabOpened:
+    client: object  # a browser tab connected (viser.ClientHandle): play a solve no one has seen yet
+
+
+@dataclass(frozen=True)
 class Call:
     function: object  # called on the writer's thread with the writer: for the panel's exports and tests
 

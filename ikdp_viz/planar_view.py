@@ -30,7 +30,8 @@ from ikdp_viz.scene import (
 )
 from ikdp_viz.style import ARM_PIXELS, ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, TARGET_RED
 
-SAMPLE_NODES = ("trail", "estimate_lines", "refined_lines", "refined_tips", "links", "joints", "tips")
+SAMPLE_NODES = ("trail", "estimate_lines", "refined_lines", "refined_tips", "links", "followed_links", "joints", "tips")
+OTHER_PIXELS = 2.0  # the other samples' links while one is followed: thin and light, as the paper's figure draws them
 
 
 class PlanarView:
@@ -38,7 +39,7 @@ class PlanarView:
 
     def __init__(self, server: viser.ViserServer, solver, target: np.ndarray, gizmo_update):
         self.server, self._gizmo_update = server, gizmo_update
-        self.trail = self.links = self.joints = self.tips = None
+        self.trail = self.links = self.followed_links = self.joints = self.tips = None
         self.refined_lines = self.refined_tips = self.estimate_lines = self.prior_lines = None
         self.nodes_shape: tuple[int, int] | None = None  # (K, N) of the arm nodes
         self._joint_scales_key: tuple | None = None  # what the joints' scales were written for
@@ -161,6 +162,13 @@ class PlanarView:
         self.links.points = placement.link_segments
         link_colors = line_colors(np.repeat(colors, num_links, axis=0))[:, None]  # as dark as the joints
         self.links.colors = np.broadcast_to(link_colors, (num_samples * num_links, 2, 3))
+        follows = follows_one(trail_of)
+        self.links.thickness = OTHER_PIXELS if follows else ARM_PIXELS
+        if follows:  # the followed arm in full width over the thin others
+            rows = slice(highlight * num_links, (highlight + 1) * num_links)
+            self.followed_links.points = placement.link_segments[rows]
+            self.followed_links.colors = np.broadcast_to(link_colors[rows], (num_links, 2, 3))
+        self.followed_links.visible = follows
         self.joints.batched_positions = placement.joint_positions
         joint_colors = colors
         if follows_one(trail_of):  # only the followed sample's joints show, in one colour: a constant array,
@@ -168,6 +176,10 @@ class PlanarView:
         self.joints.batched_colors = np.repeat(joint_colors, num_links + 1, axis=0)
         self._write_joint_scales(num_samples, num_links, highlight, follows_one(trail_of))
         self.tips.batched_positions = placement.tip_positions
+        if follows_one(trail_of):  # the other samples' tips too would cover the picture with K dots (issue 25)
+            self.tips.batched_scales = (np.arange(num_samples) == highlight).astype(np.float32)
+        else:
+            self.tips.batched_scales = np.ones(num_samples, np.float32)
         self.tips.batched_colors = np.broadcast_to(palette.tips[state], (num_samples, 3))
         for node in (self.links, self.joints, self.tips):
             node.visible = True
@@ -242,6 +254,10 @@ class PlanarView:
         self.links = scene.add_line_segments(
             "/arm/links", np.zeros((links, 2, 3)), colors=np.zeros((links, 2, 3), np.uint8), thickness=ARM_PIXELS,
             **lines,
+        )  # fmt: skip
+        self.followed_links = scene.add_line_segments(
+            "/arm/followed_links", np.zeros((num_links, 2, 3)), colors=np.zeros((num_links, 2, 3), np.uint8),
+            thickness=ARM_PIXELS, **lines,
         )  # fmt: skip
         self.joints = scene.add_batched_meshes_simple(
             "/arm/joints", joint.vertices, joint.faces, identity(joints), origin(joints),

@@ -33,6 +33,7 @@ from ikdp_viz.messages import (
     ShowPrior,
     ShowSolve,
     ShowState,
+    TabOpened,
     TogglePlay,
 )
 from ikdp_viz.panel import Panel
@@ -41,6 +42,8 @@ from ikdp_viz.scene import nearest_state
 from ikdp_viz.stage import Stage
 
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
+NOISE_HOLD = 0.6  # seconds pure noise (t = T) shows before a played denoising moves (the noisy steps pass fast)
+SOFTWARE_WEBGL_TOAST = "webgl-software-rendering"  # viser's own notification id (its BrowserWarning.tsx)
 PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
 
@@ -60,6 +63,8 @@ class SceneWriter:
         self.followed = False  # follow mode keeps the highlighted sample (the Constraints folder says)
         self.after_solve = None  # called here with each solve put on screen (the Constraints folder's follow mode)
         self._panel_written = -np.inf  # time.monotonic() of the last state written to the panel
+        self._unseen = False  # the solve on screen waits at pure noise for a tab to open, to play then
+        self.wait_for_tab = False  # with no tab open, a solve to animate waits at pure noise (the command line's)
         self._replay_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
         # still the newest; for benchmarks/viz_latency.py
@@ -144,6 +149,8 @@ class SceneWriter:
         elif isinstance(message, ShowError):
             self.error = message.text
             self._redraw()
+        elif isinstance(message, TabOpened):
+            self._tab_opened(message.client)
         elif isinstance(message, Call):
             message.function(self)
         else:
@@ -155,7 +162,7 @@ class SceneWriter:
         solved = message.solved
         if solved.request.solver is not self.solver:
             return  # a solve of the model that was replaced
-        self.animation = None
+        self.animation, self._unseen = None, False
         self.solved, self.error = solved, None
         self.view.clear_prior()  # the prior's draw was for the solve before
         if self.after_solve is not None and message.newest:
@@ -168,7 +175,11 @@ class SceneWriter:
             self._replay_target = None
         wanted = solved.request.animate or released
         if wanted and self.panel.play_on_move.value and self.panel.duration.value > 0 and last > 0:
-            self._start(0, last)
+            if not self.wait_for_tab or self.server.get_clients():
+                self._start(0, last)
+            else:  # no one would see it play: show pure noise, and play when a tab opens (finding 11)
+                self._unseen = True
+                self._draw_state(0)
         else:
             self._draw_state(last)
         self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
@@ -213,7 +224,8 @@ class SceneWriter:
         """Play from state `first` to `last`: `first` is drawn now, as an animation's frame (the light scene)."""
         seconds = float(self.panel.duration.value)
         offsets = state_offsets(self.noise_levels(), str(self.panel.learn.clock.value), seconds)
-        self.animation = Animation(first, last, seconds / max(last, 1), time.monotonic(), offsets)
+        hold = NOISE_HOLD if first == 0 else 0.0  # pure noise stays a moment: the learner sees where it starts
+        self.animation = Animation(first, last, seconds / max(last, 1), time.monotonic() + hold, offsets)
         self._panel_written = -np.inf  # the panel shows where it starts
         self._draw_state(first)
         self._tick()
@@ -266,6 +278,14 @@ class SceneWriter:
         """The arm view, the side views and the camera over all that is shown, from one frame."""
         self.stage.draw(frame, self.solver)
 
+    def _tab_opened(self, client) -> None:
+        """A tab connected: hide viser's software-WebGL toast, which covered the scene's top left (finding 11),
+        and play the solve on screen if no one has seen it play (the page opened on pure noise)."""
+        hide_toast(client)
+        if self._unseen and self.solved is not None:
+            self._unseen = False
+            self._play_from_start(user=False)
+
     # -------------------------------------------------------------- the target and the model
 
     def _place_target(self, message: PlaceTarget) -> None:
@@ -281,3 +301,11 @@ class SceneWriter:
         self.output.new_model(message.solver.timesteps)
         self.panel.target_text.content = self.kind.target_text(self.solver, self.target, self.target_clamped)
         self.output.waiting(self.error)
+
+
+def hide_toast(client) -> None:
+    """Ask `client`'s page to close viser's "Software WebGL rendering detected" notification (viser's own message:
+    the notification has a fixed id; a page with a GPU never shows it, and the message then does nothing)."""
+    from viser._messages import RemoveNotificationMessage
+
+    client._websock_connection.queue_message(RemoveNotificationMessage(SOFTWARE_WEBGL_TOAST))

@@ -591,3 +591,26 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
         assert words in legend
     app.panel.learn.trail_of.value = "all samples"
     assert "trails of all samples" in app.panel.learn.legend.content
+
+
+def test_the_page_opens_on_pure_noise_and_plays_when_a_tab_connects(solver):
+    """Finding 11 (issue 25): the command line's viewer played the first denoising before anyone connected, so a
+    tab opened on the finished pose; and viser's software-WebGL toast covered the scene."""
+    from types import SimpleNamespace
+
+    from ikdp_viz.messages import TabOpened
+
+    sent = []
+    tab = SimpleNamespace(_websock_connection=SimpleNamespace(queue_message=sent.append))
+    with running_app(solver, animation_seconds=1.0, wait_for_tab=True) as app:
+        assert app.wait_until_still(60)
+        assert app.solved is not None and app.state == 0 and not app.playing  # pure noise, waiting
+        app.writer.post(TabOpened(tab))
+        app.writer.flush()
+        assert app.playing and app.state == 0  # plays from t = T, holding pure noise a moment first
+        assert [message.uuid for message in sent] == ["webgl-software-rendering"]
+        settle(app)
+        assert app.state == app.solved.view.num_states - 1
+        app.writer.post(TabOpened(tab))  # a second tab: the solve was seen, nothing replays
+        app.writer.flush()
+        assert not app.playing
