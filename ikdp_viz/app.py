@@ -68,6 +68,7 @@ class VizApp:
         solve_now: bool = True,
         animation_seconds: float = DEFAULT_DURATION,
         wait_for_tab: bool = False,
+        previews: bool = True,
     ):
         self.server = server
         self.session = Session(solver, target)
@@ -76,6 +77,7 @@ class VizApp:
         # planar session could not open)
         self.models = ModelChoices(dict(checkpoints or {given.name: given}), solver, checkpoint_folder)
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
+        self.previews = previews  # a robot's drag shows a fast solve first (benchmarks turn it off to compare)
         current = self._current_checkpoint_label()  # first: it lists the open model when the folder lacks it
         self.panel = build_panel(
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
@@ -167,7 +169,13 @@ class VizApp:
                 constraints=constraints,
                 chosen_steps=self.sampling.chosen_steps,
             )
-            return self.worker.submit(lambda cancel: solve(request, cancel), self._solved, self._failed)
+            preview = (
+                None
+                if not self.previews
+                else lambda cancel: lambda solved: self.writer.post(ShowSolve(solved, newest=not cancel.is_set()))
+            )  # a robot's drag: a fast solve shown first, handed back like any result (solving.preview_request)
+            job = lambda cancel: solve(request, cancel, None if preview is None else preview(cancel))  # noqa: E731
+            return self.worker.submit(job, self._solved, self._failed)
 
     def _solved(self, ticket: int, solved: Solved) -> None:
         """Worker thread: hand the finished solve to the drawing loop, nothing else."""

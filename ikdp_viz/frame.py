@@ -112,6 +112,9 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     palette = palettes.get(kind, solved, highlight, settings.trail_of, constraint_colors)
     light = animating_to is not None and state < animating_to
     text = kind.solve_text(solved, state, highlight, highlight_reason(settings, highlight, solved), error)
+    if solved.preview_of is not None:  # say which is shown (deliver 6)
+        text = (f"**Fast preview** ({solved.request.sampler}, {view.num_states - 1} steps) while the "
+                f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)

@@ -135,7 +135,8 @@ class SceneWriter:
             self._toggle_play()
         elif isinstance(message, ReplayWhenDrawn):
             self._replay_target = message.target
-            if self.solved is not None and np.array_equal(self.solved.request.target, message.target):
+            shown = self.solved is not None and self.solved.preview_of is None  # a preview's full solve follows
+            if shown and np.array_equal(self.solved.request.target, message.target):
                 self._replay_target = None
                 self._play_from_start(user=False)
         elif isinstance(message, Redraw):
@@ -165,12 +166,17 @@ class SceneWriter:
         self.animation, self._unseen = None, False
         self.solved, self.error = solved, None
         self.view.clear_prior()  # the prior's draw was for the solve before
-        if self.after_solve is not None and message.newest:
+        preview = solved.preview_of is not None
+        if self.after_solve is not None and message.newest and not preview:
             self.after_solve(solved)  # follow mode picks the sample kept: before the frame that shows it
         self.output.clock(solved.view, self.noise_levels())
         self.kind.write_typed_fields(self.panel.learn.target, solved.request.target)
         last = solved.view.num_states - 1
-        released = self._replay_target is not None and np.array_equal(solved.request.target, self._replay_target)
+        released = (
+            not preview
+            and self._replay_target is not None
+            and np.array_equal(solved.request.target, self._replay_target)
+        )
         if released:
             self._replay_target = None
         wanted = solved.request.animate or released

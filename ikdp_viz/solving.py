@@ -7,6 +7,7 @@ knows how.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
+PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first (deliver 6): 5 steps, about 40 ms here
 REACH_FRACTION = 0.01  # a returned pose within this share of the arm's span reaches the target (1e-2: 0.04 bone
 # lengths on ikdp_n4, 12 mm on the Panda; ikdp_n4 unpulled lands 0.010 away, a pull that lost the target 0.15)
 
@@ -57,6 +59,20 @@ class Solved:
     # a partial target alone)
     pull_missed: float | None = None  # "stay near": the best error of the pulled samples, which all missed the
     # target, so the solve shown is the one without the pull (issue 25, finding 1); None: the pull was kept or off
+    preview_of: str | None = None  # a fast solve shown while the full one with this sampler runs (deliver 6)
+
+
+def preview_request(request: SolveRequest) -> SolveRequest | None:
+    """A fast solve to show first while `request` runs, or None: during a robot's drag (not animated), when the
+    sampler takes many steps. DPM-Solver++(2M) in 5 steps: in 10, a Panda solve took 12 ms unloaded
+    (benchmarks/viz_robot_settings.py) but 73 ms on a shared 2-core machine, against DDPM's 120-740 ms; so the
+    arm follows the gizmo at once (issue 25, deliver 6; benchmarks/viz_robot_drag.py)."""
+    sampler, steps = PREVIEW_SAMPLER
+    if request.animate or request.solver.arm.kind == "planar" or request.sampler == sampler:
+        return None
+    if (request.steps or request.solver.timesteps) <= steps:
+        return None
+    return dataclasses.replace(request, sampler=sampler, steps=steps, compare_sampler=None, compare_steps=None)
 
 
 def landing_error(result) -> float:
@@ -73,14 +89,18 @@ def stop_when(cancel: threading.Event):
     return lambda step_index, timestep, state, estimate: cancel.is_set()
 
 
-def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solved:
+def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=None) -> Solved:
     """Run the reverse diffusion for one request and build its drawable arrays (worker thread).
 
-    Raises Cancelled, part-way, once `cancel` is set: a newer request has arrived.
+    Raises Cancelled, part-way, once `cancel` is set: a newer request has arrived. `preview(solved)`, when
+    given, receives a fast solve of the same target first where `preview_request` makes one.
     """
     cancel = cancel if cancel is not None else threading.Event()
     if cancel.is_set():
         raise Cancelled
+    fast = None if preview is None else preview_request(request)
+    if fast is not None:
+        preview(dataclasses.replace(solve(fast, cancel), preview_of=request.sampler))
     generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
     started = time.perf_counter()
     solver = request.solver

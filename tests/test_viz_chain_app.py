@@ -230,3 +230,30 @@ def test_the_robots_meshes_skeletons_and_hand_are_drawn_from_the_same_state(app)
         hand, _ = gizmo_pose(app.solver.arm, view.joint_values[state, highlight])
         assert np.allclose(writer.view.hand.position, hand, atol=1e-5)
         assert np.allclose(skeleton[-1, 1], writer.view.hand.position, atol=1e-4)  # the skeleton ends at the hand
+
+
+def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
+    """Deliver 6 (issue 25): a robot's drag answered in 0.4-1.0 s with DDPM; a fast DPM-Solver++ solve is drawn
+    first, the readout naming it, and the DDPM solve replaces it."""
+    from viz_helpers import shipped_solver_or_skip
+
+    from ikdp_viz.messages import ShowSolve
+
+    with running_app(shipped_solver_or_skip("ikdp_panda"), animation_seconds=0.0) as app:
+        settle(app)
+        shown = []
+        original = app.writer._show_solve
+        app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
+        moved = np.concatenate([app.target[:3] + np.array([0.05, 0.0, 0.0]), app.target[3:]])
+        app.move_target(moved, from_gizmo=True, dragging=True)
+        settle(app)
+        kinds = [(solved.request.sampler, solved.preview_of) for solved in shown]
+        assert kinds == [("dpmpp2m", "ddpm"), ("ddpm", None)]  # the preview first, then the full solve
+        assert app.solved.request.sampler == "ddpm" and "Fast preview" not in app.panel.readout_text.content
+        app.writer.post(ShowSolve(shown[0], newest=True))
+        app.writer.flush()
+        assert "**Fast preview** (dpmpp2m, 5 steps) while the ddpm solve runs" in app.panel.readout_text.content
+        before = len(shown)
+        app.move_target(moved + np.array([0.02, 0, 0, 0, 0, 0, 0]))  # a move made in one go animates: no preview
+        settle(app)
+        assert [solved.preview_of for solved in shown[before:]] == [None]
