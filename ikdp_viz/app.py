@@ -100,24 +100,10 @@ class VizApp:
 
     # ---------------------------------------------------------------- what tests and scripts read
 
-    @property
-    def solver(self) -> ikdp.Solver:
-        return self.session.solver
-
-    @property
-    def target(self) -> np.ndarray:
-        return self.session.target
-
-    @property
-    def solved(self) -> Solved | None:
-        """The solve on screen."""
-        return self.writer.solved
-
-    @property
-    def state(self) -> int:
-        """Index of the state on screen, 0 (pure noise) .. S (final)."""
-        return self.writer.state
-
+    solver = property(lambda self: self.session.solver)  # the model the newest requests use
+    target = property(lambda self: self.session.target)  # the newest target, inside the workspace
+    solved = property(lambda self: self.writer.solved)  # the solve on screen
+    state = property(lambda self: self.writer.state)  # index of the state on screen, 0 (pure noise) .. S (final)
     playing = property(lambda self: self.writer.playing)
 
     latencies = property(lambda self: self.writer.latencies)  # (arrival, drawn, newest) per solve drawn
@@ -162,20 +148,17 @@ class VizApp:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""
         with self.session.lock:
             constraints = self.constraint_controls.constraints()
-            request = self.session.request(
-                self.panel,
-                arrival=arrival,
-                animate=animate,
-                constraints=constraints,
-                chosen_steps=self.sampling.chosen_steps,
-            )
-            preview = (
-                None
-                if not self.previews
-                else lambda cancel: lambda solved: self.writer.post(ShowSolve(solved, newest=not cancel.is_set()))
-            )  # a robot's drag: a fast solve shown first, handed back like any result (solving.preview_request)
-            job = lambda cancel: solve(request, cancel, None if preview is None else preview(cancel))  # noqa: E731
-            return self.worker.submit(job, self._solved, self._failed)
+            request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints,
+                                           chosen_steps=self.sampling.chosen_steps)  # fmt: skip
+            return self.worker.submit(self._job(request), self._solved, self._failed)
+
+    def _job(self, request):
+        """The worker's job for `request`: its solve, and for a robot's drag a fast preview first, handed back as a
+        result like any other (solving.preview_request)."""
+        if not self.previews:
+            return lambda cancel: solve(request, cancel)
+        show = lambda cancel: lambda solved: self.writer.post(ShowSolve(solved, newest=not cancel.is_set()))  # noqa
+        return lambda cancel: solve(request, cancel, show(cancel))
 
     def _solved(self, ticket: int, solved: Solved) -> None:
         """Worker thread: hand the finished solve to the drawing loop, nothing else."""

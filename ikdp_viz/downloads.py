@@ -20,7 +20,7 @@ PICTURE_WORDS = ("trail", "highlighted", "constraints", "skeletons:")  # the leg
 def export_picture(solved, settings, solver):
     """The export.Drawing of `solved` as `settings` show it: the arm kind's flat picture, colours and clock."""
     from ikdp_viz.arm_kinds import arm_kind
-    from ikdp_viz.clock import noise_levels, state_offsets
+    from ikdp_viz.clock import solve_noise_levels, state_offsets
     from ikdp_viz.export import drawing
     from ikdp_viz.frame import highlighted_sample
     from ikdp_viz.legend import Entry, Swatch
@@ -31,7 +31,7 @@ def export_picture(solved, settings, solver):
     constraint_colors = settings.color_by_constraint and solved.state_violation is not None
     palette = kind.palette(solved, highlight, settings.trail_of, constraint_colors)
     polylines, target, circle, _ = kind.flat_picture(solved)
-    sigmas = noise_levels(view.labels, solver.model.schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+    sigmas = solve_noise_levels(solver, view)
     legend = [
         entry
         for entry in kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)

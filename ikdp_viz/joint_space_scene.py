@@ -52,7 +52,7 @@ def camera_over_both(reach: float) -> tuple[tuple[float, float, float], tuple[fl
     """(position, look_at) of a camera above the workspace and the square together, as camera_fit frames one."""
     left, right = -reach, (1 + GAP + SIDE) * reach
     half, middle = (right - left) / 2, (right + left) / 2
-    distance = 1.55 * half  # scene_writer.camera_fit's framing of a radius-`half` disc
+    distance = 1.55 * half  # camera.camera_fit's framing of a radius-`half` disc
     return (middle, -1e-3 * distance, distance), (middle, 0.0, 0.0)
 
 

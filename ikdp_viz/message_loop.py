@@ -18,7 +18,7 @@ from ikdp_viz.messages import Barrier
 class MessageLoop:
     """One thread applying posted messages in order; `tick()` between them, at most `wait()` seconds apart."""
 
-    def __init__(self, apply, tick, wait, failed):
+    def __init__(self, apply, tick, *, wait, failed):
         self._apply, self._tick, self._wait, self._failed = apply, tick, wait, failed
         self._queue: queue.Queue = queue.Queue()
         self._busy = False  # a message is being applied

@@ -28,7 +28,8 @@ from ikdp_viz.scene import (
     polyline_segments,
     trail_until,
 )
-from ikdp_viz.style import ARM_PIXELS, ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR, TARGET_RED
+from ikdp_viz.style import ARM_PIXELS, ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, TARGET_RED
+from ikdp_viz.view_parts import prior_lines, removed, start_rebuild
 
 SAMPLE_NODES = ("trail", "estimate_lines", "refined_lines", "refined_tips", "links", "followed_links", "joints", "tips")
 OTHER_PIXELS = 2.0  # the other samples' links while one is followed: thin and light, as the paper's figure draws them
@@ -51,11 +52,7 @@ class PlanarView:
 
     def rebuild(self, solver, target: np.ndarray) -> None:
         """Grid, workspace boundary, base and the target's gizmo and cross, sized to `solver`'s arm."""
-        self.remove_samples()
-        self.clear_prior()
-        for handle in self._static_nodes:
-            handle.remove()
-        self.solver, self.target = solver, np.asarray(target, dtype=np.float64)
+        start_rebuild(self, solver, target)
         scene = self.server.scene
         lengths = solver.lengths
         self.sizes = meshes.ArmSizes.for_lengths(lengths)
@@ -211,16 +208,11 @@ class PlanarView:
 
     def show_prior(self, joints: np.ndarray) -> None:
         """K poses from the model's prior, (K, N+1, 2), in brown until the next solve."""
-        self.clear_prior()
-        self.prior_lines = self.server.scene.add_line_segments(
-            "/prior", polyline_segments(joints, z=0.5 * REFINED_LIFT * self.sizes.joint), colors=PRIOR,
-            thickness=2 * LINE_PIXELS, thickness_units="screen",
-        )  # fmt: skip
+        segments = polyline_segments(joints, z=0.5 * REFINED_LIFT * self.sizes.joint)
+        self.prior_lines = prior_lines(self.server, segments, self.prior_lines)
 
     def clear_prior(self) -> None:
-        if self.prior_lines is not None:
-            self.prior_lines.remove()
-            self.prior_lines = None
+        self.prior_lines = removed(self.prior_lines)
 
     # -------------------------------------------------------------- nodes
 

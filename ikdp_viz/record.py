@@ -61,7 +61,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
 
     from ikdp_viz.arm_kinds import arm_kind, arm_view_class
     from ikdp_viz.camera import camera_over, move_cameras
-    from ikdp_viz.clock import noise_levels
+    from ikdp_viz.clock import solve_noise_levels
     from ikdp_viz.frame import Palettes, build_frame
 
     settings = ViewSettings() if settings is None else settings
@@ -82,8 +82,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
         palettes = Palettes()
         frames = [build_frame(kind, solved, state, settings, palettes=palettes, animating_to=None)
                   for state in range(view.num_states)]  # fmt: skip
-        schedule = solver.model.schedule
-        sigmas = noise_levels(view.labels, schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+        sigmas = solve_noise_levels(solver, view)
         offsets = state_offsets(sigmas, settings.clock, settings.seconds)
         words = kind.target_words(solved.request.target)
         arm_view.update(frames[0])

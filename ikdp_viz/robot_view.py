@@ -27,7 +27,8 @@ from ikdp_viz.emphasis import estimate_rows, trail_rows
 from ikdp_viz.frame import Frame
 from ikdp_viz.robot_meshes import light_mesh, robot_meshes
 from ikdp_viz.scene import REFINED, grid_segments, trail_until
-from ikdp_viz.style import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, PRIOR
+from ikdp_viz.style import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS
+from ikdp_viz.view_parts import prior_lines, removed, start_rebuild
 
 SKELETON_PIXELS = 2.5  # the current state's skeletons, over the thinner trail
 HAND_AXES = 0.08  # hand frame's axes, in reach radii
@@ -58,11 +59,7 @@ class RobotView:
 
     def rebuild(self, solver, target: np.ndarray) -> None:
         """Floor grid, the target's 6-DoF gizmo at the target pose, the robot's meshes read once."""
-        self.remove_samples()
-        self.clear_prior()
-        for handle in self._static_nodes:
-            handle.remove()
-        self.solver, self.target = solver, np.asarray(target, dtype=np.float64)
+        start_rebuild(self, solver, target)
         scene = self.server.scene
         arm = solver.arm
         self.robot_meshes = robot_meshes(arm)
@@ -180,15 +177,10 @@ class RobotView:
 
     def show_prior(self, joints: np.ndarray) -> None:
         """Poses from the prior as brown skeletons; `joints` (K, J+1, 3) are their joint origins and hands."""
-        self.clear_prior()
-        self.prior_lines = self.server.scene.add_line_segments(
-            "/prior", skeleton_segments(joints), colors=PRIOR, thickness=2 * LINE_PIXELS, thickness_units="screen"
-        )
+        self.prior_lines = prior_lines(self.server, skeleton_segments(joints), self.prior_lines)
 
     def clear_prior(self) -> None:
-        if self.prior_lines is not None:
-            self.prior_lines.remove()
-            self.prior_lines = None
+        self.prior_lines = removed(self.prior_lines)
 
     # -------------------------------------------------------------- nodes
 

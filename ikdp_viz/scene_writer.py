@@ -19,7 +19,7 @@ import viser
 
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.clock import noise_levels, state_offsets
+from ikdp_viz.clock import solve_noise_levels, state_offsets
 from ikdp_viz.frame import Frame, Palettes, ViewSettings, build_frame, highlighted_sample
 from ikdp_viz.message_loop import MessageLoop
 from ikdp_viz.messages import (
@@ -69,18 +69,17 @@ class SceneWriter:
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
         # still the newest; for benchmarks/viz_latency.py
         self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
-        self.loop = MessageLoop(self._apply, self._tick, self._tick_seconds, self._failed_frame)
+        self.loop = MessageLoop(
+            self._apply, self._tick,
+            wait=lambda: None if self.animation is None else 1.0 / FRAMES_PER_SECOND,  # the next frame, or none
+            failed=lambda: setattr(self, "animation", None),  # a failed frame is reported; the loop goes on, still
+        )  # fmt: skip
         # any thread: queue a message; wait until all posted are applied; stop the loop (message_loop.py)
         self.post, self.flush, self.close, self.on_loop_thread = (
             self.loop.post, self.loop.flush, self.loop.close, self.loop.on_thread
         )  # fmt: skip
         self._palettes = Palettes()
         self.output = PanelOutput(panel)
-        # No environment map: its reflections wash dark materials out to grey; the default lights stay.
-        server.scene.configure_environment_map(hdri=None)
-        # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
-        # them, 27-29 without (docs/VIZ.md)
-        server.scene.configure_default_lights(cast_shadow=False)
         # before any thread exists: the app's constructor is the only writer yet
         self.stage = Stage(server, panel, solver, self.target, gizmo_update)
         self.kind.configure_panel(panel)
@@ -89,23 +88,9 @@ class SceneWriter:
 
     # -------------------------------------------------------------- what others read
 
-    @property
-    def view(self):
-        """The arm view (planar_view.PlanarView or robot_view.RobotView): the arm's nodes."""
-        return self.stage.view
-
-    @property
-    def playing(self) -> bool:
-        return self.animation is not None
-
-    @property
-    def still(self) -> bool:
-        """No message waiting or being applied, and no animation playing."""
-        return self.loop.idle and self.animation is None
-
-    def _tick_seconds(self) -> float | None:
-        """How long the loop may wait for a message: until the animation's next frame, or for ever when still."""
-        return None if self.animation is None else 1.0 / FRAMES_PER_SECOND
+    view = property(lambda self: self.stage.view)  # the arm view (planar_view.py or robot_view.py): its nodes
+    playing = property(lambda self: self.animation is not None)
+    still = property(lambda self: self.loop.idle and self.animation is None)  # nothing to apply, nothing playing
 
     def settings(self) -> ViewSettings:
         """The panel's view settings now (read on this thread, once per frame)."""
@@ -117,9 +102,6 @@ class SceneWriter:
         if self.solved is None:
             return 0
         return highlighted_sample(str(self.panel.highlight.value), self.solved)
-
-    def _failed_frame(self) -> None:
-        self.animation = None  # a failed frame is reported; the loop goes on, still
 
     def _apply(self, message) -> None:
         if isinstance(message, ShowSolve):
@@ -238,8 +220,7 @@ class SceneWriter:
 
     def noise_levels(self) -> np.ndarray:
         """(S+1,) the noise level sigma of each state of the solve on screen."""
-        schedule = self.solver.model.schedule
-        return noise_levels(self.solved.view.labels, schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+        return solve_noise_levels(self.solver, self.solved.view)
 
     def _tick(self) -> None:
         """Draw the state the animation's clock has reached, and end the animation on its last state."""

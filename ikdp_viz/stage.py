@@ -22,6 +22,11 @@ class Stage:
 
     def __init__(self, server, panel, solver, target: np.ndarray, gizmo_update):
         self.server = server
+        # No environment map: its reflections wash dark materials out to grey; the default lights stay.
+        server.scene.configure_environment_map(hdri=None)
+        # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
+        # them, 27-29 without (docs/VIZ.md)
+        server.scene.configure_default_lights(cast_shadow=False)
         self.view = arm_view_class(solver)(server, solver, target, gizmo_update)
         self.joint_space = JointSpaceNodes(server, panel.joint_space)  # the torus beside a planar arm
         self.compare = CompareNodes(server)  # a second sampler from the same noise, beside a planar arm
