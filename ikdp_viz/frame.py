@@ -34,6 +34,7 @@ class ViewSettings:
     seconds: float = 4.0  # from t = T to 0
     color_by_constraint: bool = True  # green / red by whether each sample's constraints hold
     followed: bool = False  # follow mode chose the highlighted sample (the Constraints folder)
+    joint_space: bool = False  # the joint-space view is on (its colours join the legend)
 
     @classmethod
     def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False) -> ViewSettings:
@@ -42,6 +43,7 @@ class ViewSettings:
             show_trail=bool(panel.show_trail.value), show_estimate=bool(panel.show_estimate.value),
             clock=str(panel.learn.clock.value), seconds=float(panel.duration.value) or 4.0,
             color_by_constraint=color_by_constraint, followed=followed,
+            joint_space=bool(panel.joint_space.show.value),
         )  # fmt: skip
 
 

@@ -26,11 +26,13 @@ from ikdp_viz.joint_space_scene import (
     model_timestep,
     square_beside,
 )
+from ikdp_viz.planar_kind import JOINT_SPACE_DOT
 
 FRAME_STRONG = (140, 140, 140)  # the border and the zero lines
 FRAME_WEAK = (196, 196, 196)  # the lines at +-pi/2
 ARROW = (185, 150, 215)  # the denoiser's arrows: a light shade of the x̂0 ghost's purple
-SOLUTION = (220, 25, 25)  # the target's red
+SOLUTION = (220, 25, 25)  # the target's red: the exact solution set (N = 2)
+FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red (finding 6)
 BACKING = (255, 255, 255)
 # Heights above the square, in units of the reach, so that the top-down view draws samples over
 # solutions over arrows over the frame.
@@ -42,6 +44,7 @@ class JointSpaceNodes:
 
     def __init__(self, server: viser.ViserServer, controls: JointSpaceControls):
         self.server, self.controls = server, controls
+        self.clear_of: float | None = None  # x the square stays right of (the arm view's ground grid edge)
         self.fields = FieldCache()
         self.frame = self.arrows = self.solutions = self.samples = self.backing = None
         self.labels: list = []
@@ -93,6 +96,8 @@ class JointSpaceNodes:
         self.samples.colors = np.asarray(frame.palette.dots, dtype=np.uint8)
         if self._solutions_key != (id(solved), joints):
             self.solutions.points = self._solution_segments(view, joints, SOLUTION_LIFT * reach)
+            self.solutions.colors = np.broadcast_to(np.array(self._solution_color(view), np.uint8),
+                                                    self.solutions.points.shape).copy()  # fmt: skip
             self._solutions_key = (id(solved), joints)
         if self._labels_key != joints:
             self._write_labels(joints)
@@ -111,9 +116,12 @@ class JointSpaceNodes:
         finals = link_headings(view.final_joints)[:, list(joints)]  # (K, 2): the solutions found
         return cross_segments(square, finals, lift).astype(np.float32)
 
+    def _solution_color(self, view) -> tuple[int, int, int]:
+        return SOLUTION if view.num_links == 2 else FOUND
+
     def _build(self, reach: float) -> None:
         scene = self.server.scene
-        square = self.square = square_beside(reach)
+        square = self.square = square_beside(reach, self.clear_of)
         (cx, cy), half = square.centre, square.side / 2
         corners = np.array([[cx - half, cy - half, 0], [cx + half, cy - half, 0], [cx + half, cy + half, 0],
                             [cx - half, cy + half, 0]]) + (0.0, 0.0, square.z - 0.004 * reach)  # fmt: skip
@@ -155,6 +163,11 @@ class JointSpaceNodes:
             add("/joint_space/y_label", second, position=(cx - 1.04 * half, cy, 0.0), anchor="center-right"),
             add("/joint_space/title", f"{first}, {second} (headings): arrows x_t → x̂0 at the step shown",
                 position=(cx, cy + 1.04 * half, 0.0), anchor="bottom-center"),
+            # the ends of each axis (finding 6: no ±π ticks): -π and π are the same heading, the torus's seam
+            add("/joint_space/x_low", "−π", position=(cx - half, cy - 1.01 * half, 0.0), anchor="top-center"),
+            add("/joint_space/x_high", "π", position=(cx + half, cy - 1.01 * half, 0.0), anchor="top-center"),
+            add("/joint_space/y_low", "−π", position=(cx - 1.01 * half, cy - half, 0.0), anchor="center-right"),
+            add("/joint_space/y_high", "π", position=(cx - 1.01 * half, cy + half, 0.0), anchor="center-right"),
         ]  # fmt: skip
         self._labels_key = joints
 

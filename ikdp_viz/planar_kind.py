@@ -138,4 +138,10 @@ class PlanarKind:
             Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
         ]
         entries += [Entry(Swatch(PRIOR), "poses drawn from the prior"), Entry(Swatch(TARGET_RED, "cross"), "target")]
+        if settings.joint_space and view is not None:  # the square's marks (finding 6: its ✕ read as "target")
+            if view.num_links == 2:
+                entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's exact solutions"))
+            else:
+                entries.append(Entry(Swatch(JOINT_SPACE_DOT, "cross"), "joint space: the final samples"))
+            entries.append(Entry(Swatch(JOINT_SPACE_DOT, "dot"), "joint space: the samples at the step shown"))
         return entries

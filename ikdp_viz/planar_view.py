@@ -59,13 +59,8 @@ class PlanarView:
         inner, outer = solver.reach
         self.reach = float(outer)
         unit = float(np.mean(lengths))
-        self.grid_half_width = float(np.ceil((outer + unit) / unit)) * unit
-        # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
-        # 82 lines cost the page as much as the 16 arms (docs/VIZ.md)
-        grid, sections = grid_segments(self.grid_half_width, unit / 2, unit, z=-0.02 * unit)
-        grid_colors = np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8)
-        grid_colors = np.broadcast_to(grid_colors, grid.shape).copy()
-        nodes = [scene.add_line_segments("/grid", grid, colors=grid_colors, thickness=1.0, thickness_units="screen")]
+        self.unit, self.grid_half_width = unit, float(np.ceil((outer + unit) / unit)) * unit
+        nodes = [self._grid(self.grid_half_width)]
         for name, radius in (("outer", outer), ("inner", inner)):
             if radius > 0:
                 nodes.append(
@@ -96,6 +91,18 @@ class PlanarView:
         )  # fmt: skip
         self._static_nodes = [*nodes, self.gizmo, self.cross]
 
+    def _grid(self, half_width: float):
+        """The ground grid out to `half_width`: a line every half bone length, darker every bone length."""
+        # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
+        # 82 lines cost the page as much as the 16 arms (docs/VIZ.md)
+        unit = self.unit
+        grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
+        colors = np.broadcast_to(
+            np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8), grid.shape
+        )
+        return self.server.scene.add_line_segments("/grid", grid, colors=colors.copy(), thickness=1.0,
+                                                   thickness_units="screen")  # fmt: skip
+
     def extent(self) -> Extent:
         """The part of the plane this view draws in: the workspace disc (the grid around it is background)."""
         return Extent.disc(self.reach)
@@ -125,8 +132,11 @@ class PlanarView:
         return over_the_point(self.target, TARGET_LIFT * self.sizes.joint, camera_position)
 
     def hide_target_controls(self) -> None:
-        """A recording: the gizmo cannot be dragged there, the cross alone marks the target (finding 2)."""
+        """A recording: the gizmo cannot be dragged there, the cross alone marks the target (finding 2); the grid
+        reaches past the sides of a page without a panel (finding 16: it ended in a visible rectangle)."""
         self.gizmo.visible = False
+        self._static_nodes[0].remove()
+        self._static_nodes[0] = self._grid(float(np.ceil(2.5 * self.reach / self.unit)) * self.unit)
 
     # -------------------------------------------------------------- one frame
 

@@ -29,6 +29,7 @@ class Stage:
         server.scene.configure_default_lights(cast_shadow=False)
         self.view = arm_view_class(solver)(server, solver, target, gizmo_update)
         self.joint_space = JointSpaceNodes(server, panel.joint_space)  # the torus beside a planar arm
+        self.joint_space.clear_of = getattr(self.view, "grid_half_width", None)  # beside the grid, not on it
         self.compare = CompareNodes(server)  # a second sampler from the same noise, beside a planar arm
         self._camera: tuple | None = None  # the camera last framed
         self.frame_camera()
@@ -61,5 +62,6 @@ class Stage:
         self.joint_space.reset()
         self.compare.remove()
         self.view.rebuild(solver, target)
+        self.joint_space.clear_of = getattr(self.view, "grid_half_width", None)
         self._camera = None
         self.frame_camera()

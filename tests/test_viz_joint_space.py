@@ -246,6 +246,15 @@ def test_for_more_links_two_chosen_joints_are_shown_against_the_final_samples(ti
         assert controls.joints() == (0, 2)
         view = app.solved.view
         assert nodes.solutions.points.shape == (2 * view.num_samples, 2, 3)  # a cross on each final sample
+        # finding 6 (issue 25): the crosses stay inside the square, which stands clear of the ground grid; they are
+        # not the target's red, the legend says what they are, and each axis ends in -π / π
+        (cx, cy), half = nodes.square.centre, nodes.square.side / 2
+        points = nodes.solutions.points
+        assert (np.abs(points[..., 0] - cx) <= half + 1e-6).all() and (np.abs(points[..., 1] - cy) <= half + 1e-6).all()
+        assert cx - half > app.writer.view.grid_half_width
+        assert not (nodes.solutions.colors == (220, 25, 25)).all(axis=-1).any()
+        assert "joint space: the final samples" in app.panel.learn.legend.content
+        assert {label.text for label in nodes.labels} >= {"−π", "π"}
         app.panel.timestep.value = 5
         headings = link_headings(view.joints[app.state])
         field = nodes.last_field
