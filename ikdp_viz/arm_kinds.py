@@ -30,3 +30,15 @@ def arm_view_class(solver):
     from ikdp_viz.robot_view import RobotView
 
     return RobotView
+
+
+def compare_view_class(solver):
+    """The class of the side view that shows a second sampler from the same noise: a second planar workspace, or
+    a robot's skeletons beside it."""
+    if arm_kind(solver).name == "planar":
+        from ikdp_viz.compare import CompareNodes
+
+        return CompareNodes
+    from ikdp_viz.robot_compare import RobotCompareNodes
+
+    return RobotCompareNodes

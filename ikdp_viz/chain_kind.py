@@ -61,7 +61,6 @@ class ChainKind:
         # Off at start: near t = T the hands jump across the whole reach ball, and their paths cage the robots.
         panel.show_trail.value = False
         panel.joint_space.folder.visible = False  # the joint space view draws planar arms only
-        panel.learn.compare.visible = False  # and so does the comparison of two samplers (compare.py)
 
     def initial_target(self, solver, target=None) -> np.ndarray:
         """(target_dim,) `target` pulled into reach; the hand at mid-limits (surely reachable) when None."""

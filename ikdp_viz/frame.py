@@ -122,7 +122,7 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:
-        chart = (*chart, compare_curve(view, solved.compare, highlight))
+        chart = (*chart, compare_curve(view, solved.compare, highlight, scale=kind.chart_scale))
     legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
     last = view.num_states - 1
     return Frame(

@@ -277,12 +277,12 @@ def error_curves(view: SolveView, highlight: int, state: int, *, scale: float = 
     return (view.labels[order].astype(np.float64), median[order], chosen[order], marker[order])
 
 
-def compare_curve(view, compare, highlight: int) -> np.ndarray:
+def compare_curve(view, compare, highlight: int, *, scale: float = 1.0) -> np.ndarray:
     """log10 of the followed sample's tip error under the second sampler, on the main chart's x (t = 0 .. T).
 
     Its states sit at fewer diffusion times than DDPM's: between two, the line joins them.
     """
     x = np.sort(view.labels).astype(np.float64)
     order = np.argsort(compare.labels, kind="stable")
-    values = np.log10(np.maximum(compare.tip_error[:, highlight], ERROR_FLOOR))[order]
+    values = np.log10(np.maximum(scale * compare.tip_error[:, highlight], ERROR_FLOOR))[order]
     return np.interp(x, compare.labels[order].astype(np.float64), values)

@@ -52,7 +52,7 @@ class Solved:
     view: SolveView | ChainView  # what is drawn (arm_kinds picks which)
     trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
     solve_seconds: float  # solver.solve alone
-    compare: SolveView | None = None  # the same noise through request.compare_sampler (planar arms)
+    compare: SolveView | ChainView | None = None  # the same noise through request.compare_sampler
     compare_trail: np.ndarray | None = None  # its trail points, as trail_points
     final_angles: np.ndarray | None = None  # (K, J) the returned joint values (refined when asked)
     state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation (checkable ones: not
@@ -141,7 +141,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
     partial = partial_target(request.constraints)  # the errors measure what the target asks (position only, ...)
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
     compare = compare_trail = None
-    if request.compare_sampler is not None and arm_kind(solver).name == "planar":
+    if request.compare_sampler is not None:
         other = solver.solve(
             request.target[None], num_samples=request.num_samples, sampler=request.compare_sampler,
             steps=request.compare_steps, return_trajectory=True,

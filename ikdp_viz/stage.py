@@ -11,9 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ikdp_viz.arm_kinds import arm_view_class
+from ikdp_viz.arm_kinds import arm_view_class, compare_view_class
 from ikdp_viz.camera import camera_over, move_cameras
-from ikdp_viz.compare import CompareNodes
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 
 
@@ -30,7 +29,7 @@ class Stage:
         self.view = arm_view_class(solver)(server, solver, target, gizmo_update)
         self.joint_space = JointSpaceNodes(server, panel.joint_space)  # the torus beside a planar arm
         self.joint_space.clear_of = getattr(self.view, "grid_half_width", None)  # beside the grid, not on it
-        self.compare = CompareNodes(server)  # a second sampler from the same noise, beside a planar arm
+        self.compare = compare_view_class(solver)(server)  # a second sampler from the same noise, beside the arm
         self._camera: tuple | None = None  # the camera last framed
         self.frame_camera()
 
@@ -49,6 +48,8 @@ class Stage:
     def frame_camera(self) -> None:
         """One camera over everything shown (a robot's view has its own); moved only when it changes."""
         camera = self.view.camera()
+        if camera is not None and self.compare.shown:  # a robot and its comparison: both in view
+            camera = self.compare.camera(self.view.center, self.view.reach)
         if camera is None:
             camera = camera_over(self.extents())
         key = tuple(np.round(np.concatenate([np.ravel(camera[0]), np.ravel(camera[1])]), 9))
@@ -61,6 +62,7 @@ class Stage:
         """Another model: the side views go, the arm view is built for its arm, the camera framed again."""
         self.joint_space.reset()
         self.compare.remove()
+        self.compare = compare_view_class(solver)(self.server)
         self.view.rebuild(solver, target)
         self.joint_space.clear_of = getattr(self.view, "grid_half_width", None)
         self._camera = None

@@ -257,3 +257,26 @@ def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
         app.move_target(moved + np.array([0.02, 0, 0, 0, 0, 0, 0]))  # a move made in one go animates: no preview
         settle(app)
         assert [solved.preview_of for solved in shown[before:]] == [None]
+
+
+def test_a_robot_compares_two_samplers_from_the_same_noise(app):
+    """Deliver 3 (issue 25): "compare with" drew planar arms only; a robot gets the second sampler's skeletons
+    beside it, the chart its curve, and one camera over both."""
+    from ikdp_viz.camera import camera_fit_3d
+
+    alone = np.asarray(app.server.initial_camera.position).copy()
+    assert app.panel.learn.compare.visible
+    app.panel.learn.compare.value = "dpmpp2m"
+    settle(app)
+    compare, view = app.solved.compare, app.solved.view
+    assert compare is not None and compare.num_samples == view.num_samples
+    nodes = app.writer.stage.compare
+    assert nodes.shown and len(nodes.nodes["skeletons"].points) == view.num_samples * compare.num_joints
+    assert len(app.panel.plot.data) == 5  # t, median, highlighted, now, and the compared sampler
+    both = np.asarray(app.server.initial_camera.position)
+    assert not np.allclose(both, alone)  # framed over both
+    app.panel.learn.compare.value = "off"
+    settle(app)
+    assert not nodes.shown
+    center, reach = app.writer.view.center, app.writer.view.reach
+    assert np.allclose(app.server.initial_camera.position, camera_fit_3d(center, reach)[0])
