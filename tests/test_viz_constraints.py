@@ -306,3 +306,16 @@ def test_a_lock_that_keeps_the_hand_from_the_target_says_so():
         settle(app)
         assert app.solved.view.final_error.min() > 0.5
         assert "no sample reaches the target with these locks" in controls.readout.content
+
+
+def test_turning_follow_off_gives_the_highlight_back_to_best(app):
+    """Finding 8 (issue 25): follow mode left the highlight on a sample number after it was turned off."""
+    controls = app.constraint_controls
+    controls.follow.value = True
+    settle(app)
+    drag_gizmo(app, 1.2, 1.0, phase="update")
+    settle(app)
+    assert app.panel.highlight.value != "best" and "kept by follow mode" in app.panel.readout_text.content
+    controls.follow.value = False
+    settle(app)
+    assert app.panel.highlight.value == "best" and "kept by follow mode" not in app.panel.readout_text.content
