@@ -30,6 +30,7 @@ from ikdp_viz.camera import camera_fit
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.downloads import Downloads
 from ikdp_viz.messages import (
+    Call,
     PlaceTarget,
     Redraw,
     ReplayWhenDrawn,
@@ -257,7 +258,9 @@ class VizApp:
                 values, kind=kind.name, target_dim=getattr(arm, "target_dim", 2), current=self.target
             )
         except ValueError as error:
-            self.panel.target_text.content = f"**Not a target** {error}"
+            text = f"**Not a target** {error}"  # written by the drawing loop, like every panel output
+            self.writer.post(Call(lambda writer: setattr(writer.panel.target_text, "content", text)))
+            self.writer.flush()
             return None
         return self.move_target(point)
 

@@ -13,7 +13,7 @@ import numpy as np
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.messages import NewModel
+from ikdp_viz.messages import Call, NewModel
 from ikdp_viz.session import initial_target
 
 
@@ -85,26 +85,26 @@ def switch_model(app, path: Path) -> bool:
     new workspace. False, with the reason in the Model folder, when the file cannot be used or drives another kind
     of arm."""
     described = arm_kind(app.solver).model_text(app.solver)
+
+    def refused(reason: str) -> bool:
+        show_model_text(app, f"**Could not load** {reason}  \n\n" + described)
+        app.panel.checkpoint.value = app._current_checkpoint_label()  # the dropdown back on the open model
+        return False
+
     try:
         solver = ikdp.load(path, device=app.solver.device)
     except (ikdp.CheckpointError, OSError, RuntimeError) as error:
-        app.panel.model_text.content = f"**Could not load** {error}  \n\n" + described
-        app.panel.checkpoint.value = app._current_checkpoint_label()
-        return False
-    if arm_kind(solver) is not arm_kind(app.solver):  # the scene writer draws one kind of arm
-        app.panel.model_text.content = (
-            f"**Could not load** {path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
-            f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}  \n\n" + described
-        )
-        app.panel.checkpoint.value = app._current_checkpoint_label()
-        return False
+        return refused(str(error))
+    if arm_kind(solver) is not arm_kind(app.solver):  # the drawing loop draws one kind of arm
+        return refused(f"{path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
+                       f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}")  # fmt: skip
     with app.session.lock:
         previous = app.session.target
         app.session.solver = solver
         app.constraint_controls.rebuild(solver)
         app.session.target = initial_target(solver, previous)
         app.writer.post(NewModel(solver, app.session.target))
-        app.panel.model_text.content = arm_kind(app.solver).model_text(app.solver)
+        show_model_text(app, arm_kind(app.solver).model_text(app.solver))
         app.panel.checkpoint.value = app._current_checkpoint_label()
         app.panel.steps.max = solver.timesteps  # here too, not only on the loop's thread: show_steps reads it
         app.sampling.show_steps()  # the new model's T, when its sampler takes all steps
@@ -112,3 +112,9 @@ def switch_model(app, path: Path) -> bool:
         same_kind_of_target = np.shape(previous) == np.shape(app.session.target)
         app.move_target(previous if same_kind_of_target else app.session.target)
     return True
+
+
+def show_model_text(app, text: str) -> None:
+    """The Model folder's text, written by the drawing loop like every panel output; waits until it is."""
+    app.writer.post(Call(lambda writer: setattr(writer.panel.model_text, "content", text)))
+    app.writer.flush()
