@@ -111,7 +111,7 @@ class RobotView:
         wxyz = self.target[3:7] if len(self.target) == 7 else (1.0, 0.0, 0.0, 0.0)
         self._static_nodes.append(
             self.server.scene.add_frame(
-                "/recording/target",
+                "/target_frame",
                 axes_length=0.1 * self.reach,
                 axes_radius=0.006 * self.reach,
                 position=tuple(float(value) for value in self.target[:3]),
