@@ -52,13 +52,15 @@ class CostsConfig:
 
 
 def measure(config: CostsConfig) -> dict[str, list[float]]:
+    import dataclasses
+
     import torch
     import trimesh
     import viser
     from playwright.sync_api import sync_playwright
 
     import ikdp
-    from ikdp_viz import scene_writer
+    from ikdp_viz import messages, planar_kind, scene_writer
     from ikdp_viz.app import VizApp
     from ikdp_viz.screenshot import COUNT_FRAMES, open_viewer_page
 
@@ -67,8 +69,8 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = VizApp(server, ikdp.load(config.ckpt), solve_now=False, animation_seconds=0.0, target=config.target)
     writer = app.writer
-    chosen = {"variant": "nothing written", "trail_states": scene_writer.PLAYING_TRAIL_STATES}
-    writer.trail_states_limit = lambda state: chosen["trail_states"]  # every frame here is a playing one
+    chosen = {"variant": "nothing written", "trail_states": planar_kind.PLAYING_TRAIL_STATES}
+    panel_written = [-1.0]
     keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
     dense: dict = {}  # the 80-face joints and tips, hidden but for their variant
 
@@ -79,28 +81,31 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             keep_drawing.position = (50.0 + 1e-3 * (state % 2), 50.0, 0.0)
             if variant.startswith("nothing"):
                 return
-            writer._draw_arms(writer.solved, state, writer.highlight_index())
+            # every frame here is a playing one, its trail as the variant asks
+            frame = dataclasses.replace(writer.make_frame(state), light=True, trail_states=chosen["trail_states"])
+            writer.view.update(frame)
             if variant == "80-face spheres":
                 for name in ("joints", "tips"):
-                    node = getattr(writer, name)
+                    node = getattr(writer.view, name)
                     dense[name].batched_positions, dense[name].batched_colors = (
                         node.batched_positions,
                         node.batched_colors,
                     )
                     node.visible = False
             every = 0.0 if variant == "panel every state" else 1.0 / scene_writer.PLAYING_PANEL_WRITES
-            if time.monotonic() - writer._panel_written >= every:
-                writer.state = state
-                writer.write_panel_state(time.monotonic())
+            if time.monotonic() - panel_written[0] >= every:
+                writer.output.frame(frame, writer.kind, writer.solver)
+                panel_written[0] = time.monotonic()
 
     def switch(variant: str) -> None:
         """On the writer's thread: from now on, draw `variant`."""
         chosen["variant"] = variant
-        chosen["trail_states"] = 4 if variant == "4 trail states" else scene_writer.PLAYING_TRAIL_STATES
+        chosen["trail_states"] = 4 if variant == "4 trail states" else planar_kind.PLAYING_TRAIL_STATES
         for node in dense.values():
             node.visible = variant == "80-face spheres"
         drawn = variant != "nothing drawn"
-        for node in (*writer._static_nodes, writer.cross, writer.trail, writer.links, writer.joints, writer.tips):
+        arm = writer.view
+        for node in (*arm._static_nodes, arm.cross, arm.trail, arm.links, arm.joints, arm.tips):
             node.visible = drawn
 
     stop = threading.Event()
@@ -109,7 +114,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
         step = 0
         while not stop.is_set():
             step += 1
-            writer.post(scene_writer.Call(lambda _, state=40 + step % 41: write(state)))
+            writer.post(messages.Call(lambda _, state=40 + step % 41: write(state)))
             time.sleep(0.05)
 
     results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}
@@ -119,9 +124,9 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             app.panel.samples.value = config.samples
             app.move_target(config.target)
             assert app.wait_until_still(120), "the solve did not finish"
-            sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.sizes.joint)
+            sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.view.sizes.joint)
             for name in ("joints", "tips"):
-                node = getattr(writer, name)
+                node = getattr(writer.view, name)
                 dense[name] = server.scene.add_batched_meshes_simple(
                     f"/dense_{name}", sphere.vertices, sphere.faces, node.batched_wxyzs, node.batched_positions,
                     batched_colors=node.batched_colors, lod="off", cast_shadow=False, receive_shadow=False,
@@ -134,7 +139,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
                 # a new order each round: a variant always following the same one inherits its after-effects
                 # (the first frames after "nothing drawn" shows every node again are slow)
                 for variant in order.sample(VARIANTS, len(VARIANTS)):
-                    writer.post(scene_writer.Call(lambda _, variant=variant: switch(variant)))
+                    writer.post(messages.Call(lambda _, variant=variant: switch(variant)))
                     writer.flush()
                     page.evaluate(COUNT_FRAMES, 1.0)  # let the switch reach the page, uncounted
                     frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)

@@ -70,11 +70,11 @@ def child(trail_of: str | None, samples: int, seconds: float, repeats: int, chro
         app.panel.learn.trail_of.value = trail_of
     app.move_target(app.target)
     assert app.wait_until_still(120)
-    grid = app.writer._static_nodes[0]  # the ground grid, the first static node
+    grid = getattr(app.writer, "view", app.writer)._static_nodes[0]  # the ground grid, the first static node
     if probe == "no grid":
         grid.visible = False
     elif probe == "section grid":  # its lines every mean bone length only, not every half
-        from ikdp_viz.scene_writer import GRID_SECTION
+        from ikdp_viz.style import GRID_SECTION
 
         sections = (grid.colors[:, 0] == GRID_SECTION).all(axis=-1)
         grid.points, grid.colors = grid.points[sections], grid.colors[sections]

@@ -21,10 +21,12 @@ import socket
 import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
-from ikdp.shipped import DEFAULT_MODEL, list_shipped, shipped_checkpoint, shipped_dir
+from ikdp.shipped import DEFAULT_MODEL, shipped_dir
+from ikdp_viz import command_line
+from ikdp_viz.command_line import checkpoint_path, command_target, target_flag_error
 
+PROGRAM = "ikdp-viz"
 SIGNAL_CHECK_SECONDS = 0.2  # how late Ctrl-C may be noticed at most
 
 
@@ -49,7 +51,7 @@ class VizConfig:
 def parse_config(argv: list[str] | None = None) -> VizConfig:
     import tyro  # here: importing this module does nothing
 
-    return tyro.cli(VizConfig, args=argv, prog="ikdp-viz", description=VizConfig.__doc__)
+    return tyro.cli(VizConfig, args=argv, prog=PROGRAM, description=VizConfig.__doc__)
 
 
 def check_settings(config: VizConfig) -> None:
@@ -87,26 +89,11 @@ def apply_settings(app, config: VizConfig) -> None:
 
 def config_target(solver, config: VizConfig):
     """The target `--target` asks for; ValueError when its numbers do not make one for this arm."""
-    from ikdp_viz.session import initial_target
-    from ikdp_viz.typed_target import target_from_numbers
-
-    arm = solver.arm
-    return target_from_numbers(
-        config.target, kind=getattr(arm, "kind", "planar"), target_dim=getattr(arm, "target_dim", 2),
-        current=initial_target(solver),
-    )  # fmt: skip
+    return command_target(solver, config.target)
 
 
 def fail(message: str) -> None:
-    print(f"ikdp-viz: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
-
-
-def checkpoint_path(ckpt: str) -> Path:
-    """A shipped model's file when `ckpt` names one and is no file here, else `ckpt` as a path."""
-    if not Path(ckpt).exists() and Path(ckpt).stem in {path.stem for path in list_shipped()} and "/" not in ckpt:
-        return shipped_checkpoint(ckpt)
-    return Path(ckpt)
+    command_line.fail(PROGRAM, message)
 
 
 def check_address(host: str, port: int) -> None:
@@ -125,22 +112,6 @@ def check_address(host: str, port: int) -> None:
         fail(f"--host {host}: cannot listen there ({getattr(error, 'strerror', None) or error})")
 
 
-def load_solver(path: Path, device: str):
-    import ikdp  # imported here: torch is slow to import and `--help` needs none of it
-
-    try:
-        return ikdp.load(path, device=device)
-    except ikdp.CheckpointError as error:
-        fail(str(error))
-    except OSError as error:
-        fail(f"{path}: cannot read it ({error.strerror or error})")
-    except ValueError as error:  # ikdp.load's answer to an unknown or absent device: "device: ..."
-        fail(f"--device {device}: {str(error).removeprefix('device: ')}")
-    except (RuntimeError, AssertionError) as error:  # torch's, should the device fail later
-        reason = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        fail(f"--device {device}: {reason}")
-
-
 def main(argv: list[str] | None = None) -> None:
     config = parse_config(argv)
     check_address(config.host, config.port)
@@ -151,12 +122,12 @@ def main(argv: list[str] | None = None) -> None:
     server = app = None
     try:
         path = checkpoint_path(config.ckpt)
-        solver = load_solver(path, config.device)
+        solver = command_line.load_solver(PROGRAM, path, config.device)
         if config.target is not None:
             try:
                 config_target(solver, config)
             except ValueError as error:
-                fail(f"--target {' '.join(f'{value:g}' for value in config.target)}: {error}")
+                fail(target_flag_error(config.target, error))
 
         import torch
         import viser
@@ -172,6 +143,7 @@ def main(argv: list[str] | None = None) -> None:
             checkpoints=list_checkpoints(shipped_dir(), path),
             checkpoint_folder=shipped_dir(),
             solve_now=False,
+            wait_for_tab=True,  # the first solve waits at pure noise and plays when the first tab opens
         )
         apply_settings(app, config)
         port = server.get_port()

@@ -7,15 +7,16 @@ every intermediate pose a thin line from faint (pure noise, t = T) to dark
 (t = 0), the current pose solid; then it plays the denoising from t = T to 0.
 
 This file wires four parts: the session (model, target: `session.py`), the solve
-worker (`solve_worker.py`, `solving.py`), the scene writer (`scene_writer.py`,
-the one thread that draws; `chain_scene_writer.py` for a robot) and the panel
-(`panel.py`). Callbacks only change the session and send messages; they never
-write the scene. What differs per kind of arm is `arm_kinds.py`'s.
+worker (`solve_worker.py`, `solving.py`: it only hands results back), the drawing
+loop (`scene_writer.py`, the one thread that writes the scene, cameras and panel
+outputs, from one `Frame` per picture: `frame.py`) and the panel (`panel.py`).
+Callbacks only change the session and send messages; they never write the scene.
+What differs per kind of arm is an arm kind (`planar_kind.py`, `chain_kind.py`) and
+an arm view (`planar_view.py`, `robot_view.py`), picked in `arm_kinds.py` alone.
 """
 
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 
@@ -23,53 +24,35 @@ import numpy as np
 import viser
 
 import ikdp
-from ikdp.checkpoint import read_checkpoint
-from ikdp.samplers import SAMPLERS, sampler_names
+from ikdp.samplers import sampler_names
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.chain_scene_writer import ChainSceneWriter
+from ikdp_viz.camera import camera_fit
 from ikdp_viz.constraint_controls import ConstraintControls
-from ikdp_viz.panel import DEFAULT_DURATION, build_panel, highlight_options
-from ikdp_viz.scene_writer import (
+from ikdp_viz.downloads import Downloads
+from ikdp_viz.messages import (
     Call,
-    NewModel,
     PlaceTarget,
     Redraw,
     ReplayWhenDrawn,
-    SceneWriter,
     ShowError,
     ShowPrior,
     ShowSolve,
     ShowState,
+    TabOpened,
     TogglePlay,
-    camera_fit,
 )
-from ikdp_viz.session import Session, initial_target
+from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
+from ikdp_viz.panel import DEFAULT_DURATION, build_panel
+from ikdp_viz.sampling_controls import SamplingControls
+from ikdp_viz.scene_writer import SceneWriter
+from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
 from ikdp_viz.typed_target import target_from_numbers
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
-SCENE_WRITERS = {"planar": SceneWriter, "chain": ChainSceneWriter}  # how each arm kind is drawn
 
-__all__ = ["VizApp", "camera_fit", "list_checkpoints"]
-
-
-def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
-    """Dropdown label -> path for every `.pt` in `folder`, plus `extra` (labelled by its path) if elsewhere."""
-    found = {path.name: path for path in sorted(Path(folder).glob("*.pt"))} if Path(folder).is_dir() else {}
-    if extra is not None and Path(extra).resolve() not in {path.resolve() for path in found.values()}:
-        found[str(extra)] = Path(extra)
-    return found
-
-
-def checkpoint_arm_kind(path: Path) -> str | None:
-    """The kind of arm ("planar", "chain") a checkpoint file's model drives; None if ikdp cannot read the file."""
-    try:
-        payload = read_checkpoint(path)
-    except ikdp.CheckpointError:
-        return None
-    arm = payload["model"].get("arm")  # absent or None: a planar arm described by its `lengths`
-    return str(arm.get("kind", "planar")) if isinstance(arm, dict) else "planar"
+__all__ = ["VizApp", "camera_fit", "checkpoint_arm_kind", "list_checkpoints"]
 
 
 class VizApp:
@@ -85,73 +68,60 @@ class VizApp:
         target: tuple[float, float] | None = None,
         solve_now: bool = True,
         animation_seconds: float = DEFAULT_DURATION,
+        wait_for_tab: bool = False,
+        previews: bool = True,
     ):
         self.server = server
         self.session = Session(solver, target)
-        self.checkpoint_folder = checkpoint_folder
         given = Path(solver.metadata.get("path", "model.pt"))
-        self._checkpoint_kinds: dict[tuple[Path, float, int], str | None] = {}  # (path, mtime, size) -> arm kind
         # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
         # planar session could not open)
-        self.checkpoints = self._openable(dict(checkpoints or {given.name: given}), solver)
+        self.models = ModelChoices(dict(checkpoints or {given.name: given}), solver, checkpoint_folder)
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
-        self._export_lock = threading.Lock()  # one export renders at a time
-        self._export_notes: dict[int, viser.NotificationHandle] = {}  # client id -> its export's notification
+        self.previews = previews  # a robot's drag shows a fast solve first (benchmarks turn it off to compare)
         current = self._current_checkpoint_label()  # first: it lists the open model when the folder lacks it
         self.panel = build_panel(
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
             checkpoint_label=current, model_text=self._model_description(),
         )  # fmt: skip
-        writer_class = SCENE_WRITERS[arm_kind(solver).name]
-        self.writer = writer_class(server, self.panel, solver, self.session.target, self.on_gizmo_update)
-        self._chosen_steps = int(self.panel.steps.value)  # the steps a sampler that can skip some takes
-        self._showing_steps = False  # _show_steps is moving the slider
+        self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
+        self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
+        self.sampling = SamplingControls(self.panel, lambda: self.request_solve())
         self.constraint_controls = ConstraintControls(server, solver, self.writer.post, self.request_solve)
+        # on the drawing loop's thread: follow mode picks the highlighted sample before the frame that shows it
+        self.writer.after_solve = lambda solved: self.constraint_controls.after_solve(solved, self.panel, self.writer)
+        self.downloads = Downloads(self.writer, self.panel)
         self._wire_panel()
-        self._show_steps()
-        server.on_client_connect(lambda client: self.refresh_checkpoints())
+        self.sampling.show_steps()
+        server.on_client_connect(self._on_connect)
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
         if solve_now:
             self.move_target(self.session.target)
 
     # ---------------------------------------------------------------- what tests and scripts read
 
-    @property
-    def solver(self) -> ikdp.Solver:
-        return self.session.solver
+    solver = property(lambda self: self.session.solver)  # the model the newest requests use
+    target = property(lambda self: self.session.target)  # the newest target, inside the workspace
+    solved = property(lambda self: self.writer.solved)  # the solve on screen
+    state = property(lambda self: self.writer.state)  # index of the state on screen, 0 (pure noise) .. S (final)
+    playing = property(lambda self: self.writer.playing)
 
-    @property
-    def target(self) -> np.ndarray:
-        return self.session.target
-
-    @property
-    def solved(self) -> Solved | None:
-        """The solve on screen."""
-        return self.writer.solved
-
-    @property
-    def state(self) -> int:
-        """Index of the state on screen, 0 (pure noise) .. S (final)."""
-        return self.writer.state
-
-    @property
-    def playing(self) -> bool:
-        return self.writer.playing
-
-    @property
-    def latencies(self):
-        return self.writer.latencies
+    latencies = property(lambda self: self.writer.latencies)  # (arrival, drawn, newest) per solve drawn
 
     def highlight_index(self) -> int:
         return self.writer.highlight_index()
 
     def __getattr__(self, name: str):
-        # The scene's handles (gizmo, cross, trail, links, joints, tips, refined_lines, ...) are the writer's.
+        # The scene's handles (gizmo, cross, trail, links, joints, tips, refined_lines, ...) are the arm view's.
         if name in {"gizmo", "cross", "trail", "links", "joints", "tips", "refined_lines", "refined_tips",
                     "estimate_lines"}:  # fmt: skip
-            return getattr(self.writer, name)
+            return getattr(self.writer.view, name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def _on_connect(self, client) -> None:
+        self.refresh_checkpoints()
+        self.writer.post(TabOpened(client))  # the loop plays a solve no one saw, and hides viser's WebGL toast
 
     # ---------------------------------------------------------------- requests
 
@@ -179,21 +149,21 @@ class VizApp:
         """Solve the current target with the panel's settings, replacing any solve not yet started."""
         with self.session.lock:
             constraints = self.constraint_controls.constraints()
-            request = self.session.request(
-                self.panel,
-                arrival=arrival,
-                animate=animate,
-                constraints=constraints,
-                chosen_steps=self._chosen_steps,
-            )
-            return self.worker.submit(lambda cancel: solve(request, cancel), self._solved, self._failed)
+            request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints,
+                                           chosen_steps=self.sampling.chosen_steps)  # fmt: skip
+            return self.worker.submit(self._job(request), self._solved, self._failed)
+
+    def _job(self, request):
+        """The worker's job for `request`: its solve, and for a robot's drag a fast preview first, handed back as a
+        result like any other (solving.preview_request)."""
+        if not self.previews:
+            return lambda cancel: solve(request, cancel)
+        show = lambda cancel: lambda solved: self.writer.post(ShowSolve(solved, newest=not cancel.is_set()))  # noqa
+        return lambda cancel: solve(request, cancel, show(cancel))
 
     def _solved(self, ticket: int, solved: Solved) -> None:
-        """Worker thread: hand the finished solve to the writer."""
-        newest = self.worker.is_newest(ticket)
-        self.writer.post(ShowSolve(solved, newest=newest))
-        if newest:
-            self.constraint_controls.after_solve(solved, self.panel)
+        """Worker thread: hand the finished solve to the drawing loop, nothing else."""
+        self.writer.post(ShowSolve(solved, newest=self.worker.is_newest(ticket)))
 
     def _failed(self, ticket: int, error: BaseException) -> None:
         self.writer.post(ShowError(f"{type(error).__name__}: {error}"))
@@ -244,22 +214,22 @@ class VizApp:
                        panel.learn.clock, panel.duration):  # fmt: skip
             toggle.on_update(lambda event: self._post(event, Redraw()))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
-        panel.export_button.on_click(self._on_export)
-        panel.learn.share.on_click(self._on_share)
+        panel.export_button.on_click(self.downloads.on_export)
+        panel.learn.share.on_click(self.downloads.on_share)
         panel.learn.target.go.on_click(lambda _: self.move_typed_target())
         panel.learn.compare.on_update(lambda _: self.request_solve())
-        panel.samples.on_update(lambda _: self._on_samples())
-        panel.sampler.on_update(lambda _: self._on_sampler())
-        panel.steps.on_update(lambda _: self._on_steps())
+        panel.samples.on_update(lambda _: self.sampling.on_samples())
+        panel.sampler.on_update(lambda _: self.sampling.on_sampler())
+        panel.steps.on_update(lambda _: self.sampling.on_steps())
         panel.refine_steps.on_update(lambda _: self.request_solve())
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
-        panel.refine.on_update(lambda _: self._on_refine())
+        panel.refine.on_update(lambda _: self.sampling.on_refine())
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
 
     def _post(self, event: viser.GuiEvent, message) -> None:
         """Send `message` to the writer; a value set from Python (a script, a test) waits until it is drawn."""
-        if threading.current_thread() is self.writer._thread:
-            return  # the writer itself moved a control while drawing
+        if self.writer.on_loop_thread():
+            return  # the drawing loop itself moved a control while drawing
         self.writer.post(message)
         if event.client is None:
             self.writer.flush()
@@ -276,190 +246,52 @@ class VizApp:
         return joints
 
     def export(self, folder: Path, progress=None) -> tuple[Path, Path]:
-        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`.
-
-        `progress(done, total)` is called after each GIF frame (export.write_gif).
-        """
-        from ikdp_viz.export import write_gif, write_trail_png
-
-        done: list = []
-        self.writer.post(Call(lambda writer: done.append((writer.solved, writer.highlight_index()))))
-        self.writer.flush()
-        solved, highlight = done[0]  # read on the writer's thread: the pair belongs to one solve
-        if solved is None:
-            raise ValueError("export: nothing solved yet")
-        if arm_kind(self.solver).name != "planar":
-            raise ValueError("export: the GIF and PNG draw the planar arm; a robot's denoising is not exported")
-        x, y = solved.view.target
-        stem = f"ikdp_{solved.request.sampler}_K{solved.view.num_samples}_seed{solved.request.seed}_{x:+.3f}_{y:+.3f}"
-        seconds = float(self.panel.duration.value) or 4.0
-        gif = write_gif(solved.view, Path(folder) / f"{stem}.gif", highlight, seconds=seconds, progress=progress)
-        png = write_trail_png(solved.view, Path(folder) / f"{stem}_trail.png", highlight)
-        return gif, png
-
-    def _on_export(self, event: viser.GuiEvent) -> None:
-        """Export into a temporary folder and save both files in the downloads of the tab that asked.
-
-        The tab sees one notification per export, replacing its last one: the GIF's frames as they
-        render, then the two names. The files are saved at once (viser's `save_immediately`): without
-        it viser shows a link per file to click, and the links pile up (issue 19).
-        """
-        import tempfile
-
-        client = event.client
-        if client is None:
-            return
-        previous = self._export_notes.pop(client.client_id, None)
-        if previous is not None:  # popped, so never removed twice
-            previous.remove()
-        note = client.add_notification("Export", "starting", loading=True, with_close_button=False)
-        self._export_notes[client.client_id] = note
-        if not self._export_lock.acquire(blocking=False):
-            note.title, note.body, note.loading = "Export", "another export is rendering; try again", False
-            note.with_close_button, note.auto_close_seconds = True, 5.0
-            return
-        try:
-            progress = lambda done, total: setattr(note, "body", f"rendering the GIF: frame {done} of {total}")
-            with tempfile.TemporaryDirectory() as folder:
-                paths = self.export(Path(folder), progress=progress)
-                note.body = "sending the files"
-                for path in paths:
-                    client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
-            # a zero-width space after each "_" lets the long names wrap instead of being cut off with "..."
-            names = [path.name.replace("_", "_\u200b") for path in paths]
-            note.title, note.body = "Exported to your downloads", " and ".join(names)
-        except ValueError as error:
-            note.title, note.body, note.color = "Export failed", str(error), "red"
-        finally:
-            self._export_lock.release()
-        note.loading, note.with_close_button, note.auto_close_seconds = False, True, 8.0
+        """Write the solve on screen as `<stem>.gif` and `<stem>_trail.png` into `folder` (downloads.py)."""
+        return self.downloads.export(folder, progress)
 
     def move_typed_target(self) -> int | None:
         """Solve the target typed in the panel's Target folder (pulled into the workspace as a drag would be)."""
-        inputs, arm = self.panel.learn.target, self.solver.arm
-        kind = arm_kind(self.solver).name
-        if kind == "planar":
-            values = tuple(inputs.xy.value)
-        else:
-            position = tuple(float(value) / 1000 for value in inputs.position_mm.value)
-            values = position + (tuple(inputs.rotation_deg.value) if arm.target_dim == 7 else ())
+        arm, kind = self.solver.arm, arm_kind(self.solver)
+        values = kind.typed_numbers(self.panel.learn.target, arm)
         try:
             point = target_from_numbers(
-                values, kind=kind, target_dim=getattr(arm, "target_dim", 2), current=self.target
+                values, kind=kind.name, target_dim=getattr(arm, "target_dim", 2), current=self.target
             )
         except ValueError as error:
-            self.panel.target_text.content = f"**Not a target** {error}"
+            text = f"**Not a target** {error}"  # written by the drawing loop, like every panel output
+            self.writer.post(Call(lambda writer: setattr(writer.panel.target_text, "content", text)))
+            self.writer.flush()
             return None
         return self.move_target(point)
 
     def share(self) -> tuple[str, str]:
-        """The solve on screen as one self-contained HTML page (record.py) with the panel's view: (file name, page)."""
-        from ikdp_viz.record import RecordSettings, file_name, record_html
-
-        done: list = []
-        self.writer.post(Call(lambda writer: done.append(writer.solved)))
-        self.writer.flush()
-        solved = done[0]  # read on the writer's thread: the solve on screen
-        if solved is None:
-            raise ValueError("share: nothing solved yet")
-        return file_name(solved), record_html(solved, RecordSettings.from_panel(self.panel))
-
-    def _on_share(self, event: viser.GuiEvent) -> None:
-        """Record the solve on screen and send the page to the tab that asked; the button says while it works."""
-        if event.client is None or self.solved is None:
-            return
-        button = self.panel.learn.share
-        label, button.label, button.disabled = button.label, "Recording the denoising...", True
-        try:
-            name, page = self.share()
-            event.client.send_file_download(name, page.encode("utf-8"), save_immediately=True)
-        finally:
-            button.label, button.disabled = label, False
+        """The solve on screen as one self-contained HTML page (record.py): (file name, page)."""
+        return self.downloads.share()
 
     def _on_timestep(self, event: viser.GuiEvent) -> None:
         self._post(event, ShowState(timestep=float(self.panel.timestep.value)))
-
-    def _on_samples(self) -> None:
-        options = highlight_options(int(self.panel.samples.value))
-        current = self.panel.highlight.value
-        self.panel.highlight.options = options
-        if current not in options:
-            self.panel.highlight.value = "best"
-        self.request_solve()
-
-    def _on_sampler(self) -> None:
-        self._show_steps()
-        self.request_solve()
-
-    def _on_steps(self) -> None:
-        steps = self.panel.steps
-        if self._showing_steps or (steps.disabled and int(steps.value) == steps.max):
-            return  # _show_steps, or the writer fitting the slider to a new model's T: no one's choice
-        self._chosen_steps = int(steps.value)  # a script's or the command line's, for when a sampler can skip
-        if steps.disabled:
-            self._show_steps()  # this sampler takes all T: that is what the slider says
-        else:
-            self.request_solve()
-
-    def _show_steps(self) -> None:
-        """The steps slider: the user's choice for a sampler that can skip steps; else disabled at T, the steps
-        it does take (issue 19: DDPM showed a stale number). The user's choice comes back with such a sampler."""
-        steps = self.panel.steps
-        takes_all = not SAMPLERS[str(self.panel.sampler.value)].supports_steps
-        if takes_all and not steps.disabled:
-            self._chosen_steps = int(steps.value)
-        steps.disabled = takes_all
-        shown = steps.max if takes_all else min(self._chosen_steps, steps.max)
-        if steps.value != shown:
-            self._showing_steps = True  # not a user's change: no solve of its own
-            try:
-                steps.value = shown
-            finally:
-                self._showing_steps = False
-
-    def _on_refine(self) -> None:
-        self.panel.refine_steps.disabled = not self.panel.refine.value
-        self.request_solve()
 
     def _model_description(self) -> str:
         return arm_kind(self.solver).model_text(self.solver)
 
     # ---------------------------------------------------------------- checkpoints
 
+    @property
+    def checkpoints(self) -> dict[str, Path]:
+        """The model dropdown's label -> path (model_choices.py)."""
+        return self.models.paths
+
+    @checkpoints.setter
+    def checkpoints(self, paths: dict[str, Path]) -> None:
+        self.models.paths = dict(paths)
+
     def _current_checkpoint_label(self) -> str:
-        path = Path(self.solver.metadata.get("path", ""))
-        for label, candidate in self.checkpoints.items():
-            if candidate == path or (candidate.exists() and path.exists() and candidate.resolve() == path.resolve()):
-                return label
-        label = str(path)
-        self.checkpoints[label] = path
-        return label
+        return self.models.label_of(self.solver)
 
     def refresh_checkpoints(self) -> None:
         """Re-list the checkpoint folder (new models appear as they are trained)."""
-        if self.checkpoint_folder is None:
-            return
-        current = self._current_checkpoint_label()
-        found = self._openable(list_checkpoints(self.checkpoint_folder), self.solver)
-        found.setdefault(current, self.checkpoints[current])
-        self.checkpoints = found
-        self.panel.checkpoint.options = tuple(found)
-
-    def _openable(self, checkpoints: dict[str, Path], solver: ikdp.Solver) -> dict[str, Path]:
-        """The entries of `checkpoints` whose model drives `solver`'s kind of arm; each file read once per version."""
-        wanted = arm_kind(solver).name
-        kept = {}
-        for label, path in checkpoints.items():
-            try:
-                stat = Path(path).stat()
-            except OSError:
-                continue
-            key = (Path(path), stat.st_mtime, stat.st_size)
-            if key not in self._checkpoint_kinds:
-                self._checkpoint_kinds[key] = checkpoint_arm_kind(Path(path))
-            if self._checkpoint_kinds[key] == wanted:
-                kept[label] = path
-        return kept
+        if self.models.refresh(self.solver):
+            self.panel.checkpoint.options = tuple(self.models.paths)
 
     def _on_checkpoint(self) -> None:
         label = self.panel.checkpoint.value
@@ -467,31 +299,5 @@ class VizApp:
             self.load_checkpoint(self.checkpoints[label])
 
     def load_checkpoint(self, path: Path) -> bool:
-        """Switch to another model: reload, redraw the scene for its arm, solve again."""
-        try:
-            solver = ikdp.load(path, device=self.solver.device)
-        except (ikdp.CheckpointError, OSError, RuntimeError) as error:
-            self.panel.model_text.content = f"**Could not load** {error}  \n\n" + self._model_description()
-            self.panel.checkpoint.value = self._current_checkpoint_label()
-            return False
-        if arm_kind(solver) is not arm_kind(self.solver):  # the scene writer draws one kind of arm
-            self.panel.model_text.content = (
-                f"**Could not load** {path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
-                f"{arm_kind(self.solver).name} arm; start another with --ckpt {path}  \n\n" + self._model_description()
-            )
-            self.panel.checkpoint.value = self._current_checkpoint_label()
-            return False
-        with self.session.lock:
-            previous = self.session.target
-            self.session.solver = solver
-            self.constraint_controls.rebuild(solver)
-            self.session.target = initial_target(solver, previous)
-            self.writer.post(NewModel(solver, self.session.target))
-            self.panel.model_text.content = self._model_description()
-            self.panel.checkpoint.value = self._current_checkpoint_label()
-            self.panel.steps.max = solver.timesteps  # here too, not only on the writer's thread: _show_steps reads it
-            self._show_steps()  # the new model's T, when its sampler takes all steps
-            # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
-            same_kind_of_target = np.shape(previous) == np.shape(self.session.target)
-            self.move_target(previous if same_kind_of_target else self.session.target)
-        return True
+        """Switch to another model: reload, redraw the scene for its arm, solve again (model_choices.py)."""
+        return switch_model(self, path)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ikdp_viz.chain_scene import ChainView
+from ikdp_viz.readouts import sample_note
 
 
 def pose_text(target: np.ndarray) -> str:
@@ -39,28 +40,28 @@ def target_kind_text(measure: str) -> str | None:
     return f"**The hand's {measure} free**: any turn about it counts; the angle is that axis's miss"
 
 
-def best_note(view: ChainView, highlight: int) -> str:
-    """ ", the best by ..." when `highlight` is the best sample (ChainView.best_sample: position + 0.1 m per radian);
-    with refinement, the sample whose raw pose ranks first too when it is another one (issue 19)."""
-    if highlight != view.best_sample():
-        return ""
-    if not view.refined:
-        return ", the best by hand error at t = 0"
-    raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1]))
-    raw = "" if raw_best == highlight else f"; by raw hand error at t = 0, sample {raw_best + 1}"
-    return f", the best by refined hand error{raw}"
-
-
 def chain_solve_text(
-    view: ChainView, state: int, highlight: int, *, sampler: str, seed: int, refine_steps: int, solve_seconds: float
+    view: ChainView,
+    state: int,
+    highlight: int,
+    *,
+    sampler: str,
+    seed: int,
+    refine_steps: int,
+    solve_seconds: float,
+    reason: str | None = None,
 ) -> str:
-    """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve."""
+    """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve.
+
+    Samples are ranked by ChainView.best_sample (position + 0.1 m per radian); `reason`: readouts.sample_note.
+    """
     last = view.num_states - 1
-    best = best_note(view, highlight)
+    raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1]))
+    note, raw_line = sample_note(view, highlight, reason, "hand error", raw_best)
     measure = view.rotation_measure
     lines = [
         f"**Step** {state} of {last} (t = {int(view.labels[state])})",
-        f"**Hand error**, sample {highlight + 1} of {view.num_samples}{best}: "
+        f"**Hand error**, sample {highlight + 1} of {view.num_samples}{note}: "
         f"{error_pair(view.position_error[state, highlight], view.rotation_error[state, highlight], measure)} now, "
         f"{error_pair(view.position_error[last, highlight], view.rotation_error[last, highlight], measure)} at t = 0",
         f"median of K = {view.num_samples} at t = 0: "
@@ -71,6 +72,8 @@ def chain_solve_text(
             f"refined ({refine_steps} DLS steps): "
             f"{error_pair(view.final_position_error[highlight], view.final_rotation_error[highlight], measure)}"
         )
+    if raw_line:
+        lines.append(raw_line)
     kind = target_kind_text(measure)
     if kind is not None:
         lines.insert(1, kind)

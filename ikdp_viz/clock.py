@@ -61,3 +61,8 @@ def clock_note(labels: np.ndarray, offsets: np.ndarray, sigmas: np.ndarray) -> s
     if len(settled):
         parts.append(f"t = {labels[settled[0]]} .. 0 take {total - offsets[settled[0]]:.1f} s")
     return f"of {total:.1f} s: " + "; ".join(parts) if parts else f"{total:.1f} s in all"
+
+
+def solve_noise_levels(solver, view) -> np.ndarray:
+    """(S+1,) the noise level sigma of each state of a solve's `view`, from `solver`'s schedule."""
+    return noise_levels(view.labels, solver.model.schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())

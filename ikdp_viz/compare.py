@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from ikdp_viz.camera import Extent
 from ikdp_viz.emphasis import emphasis_colors, trail_rows
 from ikdp_viz.scene import (
-    ERROR_FLOOR,
     arm_placement,
     circle_segments,
     line_colors,
@@ -38,31 +38,12 @@ def offset(reach: float) -> float:
     return -(2 + GAP) * reach
 
 
-def camera_over_pair(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """(position, look_at) of a camera above both workspaces, framed as scene_writer.camera_fit frames one."""
-    left, right = offset(reach) - reach, reach
-    half, middle = (right - left) / 2, (right + left) / 2
-    distance = 1.55 * half
-    return (middle, -1e-3 * distance, distance), (middle, 0.0, 0.0)
-
-
-def compare_curve(view, compare, highlight: int) -> np.ndarray:
-    """log10 of the followed sample's tip error under the second sampler, on the main chart's x (t = 0 .. T).
-
-    Its states sit at fewer diffusion times than DDPM's: between two, the line joins them.
-    """
-    x = np.sort(view.labels).astype(np.float64)
-    order = np.argsort(compare.labels, kind="stable")
-    values = np.log10(np.maximum(compare.tip_error[:, highlight], ERROR_FLOOR))[order]
-    return np.interp(x, compare.labels[order].astype(np.float64), values)
-
-
 class CompareNodes:
     """The second sampler's workspace: its circle, trail, arms, target cross and the two labels."""
 
-    def __init__(self, server: viser.ViserServer, arm_camera):
+    def __init__(self, server: viser.ViserServer):
         self.server = server
-        self._arm_camera = arm_camera  # the camera of the workspace alone, restored when the comparison goes
+        self._reach: float | None = None  # the workspace radius while shown
         self.nodes: dict = {}
         self._solved_id: int | None = None  # the solve whose colours are cached
         self._colors = self._trail_colors = None
@@ -71,15 +52,20 @@ class CompareNodes:
     def shown(self) -> bool:
         return bool(self.nodes)
 
-    def draw(self, solver, solved, state: int, highlight: int, trail_of: str, *, show_trail: bool, sizes) -> None:
+    def extent(self) -> Extent | None:
+        """The second workspace's part of the plane while it is shown (the drawing loop frames the camera)."""
+        return None if not self.shown else Extent.disc(self._reach, x=offset(self._reach))
+
+    def draw(self, solver, frame, *, sizes) -> None:
         """Write the second sampler's state nearest the main one's diffusion time, or remove the view."""
+        solved, state, highlight = frame.solved, frame.state, frame.highlight
+        trail_of, show_trail = frame.settings.trail_of, frame.settings.show_trail
         compare = getattr(solved, "compare", None)
-        reach = float(solver.reach[1])
-        if compare is None:
+        if compare is None or sizes is None:
             if self.shown:
                 self.remove()
-                self._move_cameras(self._arm_camera(reach))
             return
+        reach = float(solver.reach[1])
         if not self.shown:
             self._build(solver, solved, reach, sizes)
         key = (id(solved), highlight, trail_of)
@@ -108,7 +94,7 @@ class CompareNodes:
 
     def _build(self, solver, solved, reach: float, sizes) -> None:
         from ikdp_viz import meshes
-        from ikdp_viz.scene_writer import ARM_PIXELS, LINE_PIXELS, TARGET_RED
+        from ikdp_viz.style import ARM_PIXELS, LINE_PIXELS, TARGET_RED
 
         scene, x = self.server.scene, offset(reach)
         compare = solved.compare
@@ -135,16 +121,9 @@ class CompareNodes:
         self.nodes["title"] = scene.add_label("/compare/title", "", position=(x, top, 0.0), anchor="bottom-center")
         self.nodes["main_title"] = scene.add_label("/compare/main_title", "", position=(0.0, top, 0.0),
                                                    anchor="bottom-center")  # fmt: skip
-        self._move_cameras(camera_over_pair(reach))
+        self._reach = reach
 
     def remove(self) -> None:
         for node in self.nodes.values():
             node.remove()
-        self.nodes, self._solved_id = {}, None
-
-    def _move_cameras(self, camera) -> None:
-        position, look_at = camera
-        self.server.initial_camera.position, self.server.initial_camera.look_at = position, look_at
-        for client in self.server.get_clients().values():
-            with client.atomic():
-                client.camera.position, client.camera.look_at = position, look_at
+        self.nodes, self._solved_id, self._reach = {}, None, None

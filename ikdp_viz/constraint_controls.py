@@ -26,17 +26,19 @@ import threading
 import numpy as np
 import viser
 
+from ikdp_viz.constraint_readout import readout_text
 from ikdp_viz.constraint_scene import (
     FREE_AXIS_COLOR,
     TARGET_KINDS,
     build_constraints,
-    first_holding_state,
     follow_choice,
     holds,
     overlay_segments,
 )
+from ikdp_viz.lock_fields import lock_fields
+from ikdp_viz.messages import Call
 from ikdp_viz.scene import line_colors
-from ikdp_viz.scene_writer import Call
+from ikdp_viz.solving import REACH_FRACTION
 
 OBSTACLE_COLOR = (200, 60, 60)
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
@@ -55,6 +57,7 @@ class ConstraintControls:
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
         self.largest_jump = 0.0
+        self.highlight_set: tuple | None = None  # (panel, number) follow mode wrote into the highlight dropdown
         self.overlay = None
         self.target_marks = None  # the free axis and its ring through the target (a child of the target's gizmo)
         self.build(solver)
@@ -66,8 +69,7 @@ class ConstraintControls:
         arm = solver.arm
         planar = arm.kind == "planar"
         gui = self.server.gui
-        names = [f"θ{index + 1}" for index in range(arm.num_joints)] if planar else list(arm.joint_names)
-        limits = None if planar else arm.joint_limits.numpy()
+        self.fields = lock_fields(arm)
         self.folder = gui.add_folder("Constraints", expand_by_default=False)
         with self.folder:
             self.target_kind = None  # a planar arm's target is a point: nothing to leave free
@@ -78,12 +80,12 @@ class ConstraintControls:
                     "about one of the hand's axes",
                 )  # fmt: skip
             self.lock_boxes, self.lock_values = [], []
-            for index, name in enumerate(names):
-                low, high = (-np.pi, np.pi) if limits is None else (float(limits[index, 0]), float(limits[index, 1]))
-                box = gui.add_checkbox(f"lock {name}", False)
+            for field in self.fields:
+                box = gui.add_checkbox(f"lock {field.name}", False)
                 value = gui.add_number(
-                    f"{name} value", round((low + high) / 2, 3), min=low, max=high, step=0.01, disabled=True
-                )
+                    field.label, field.initial, min=field.low, max=field.high, step=0.1, disabled=True,
+                    hint="any angle: it wraps into (-180°, 180°]" if field.wraps else "within the joint's limits",
+                )  # fmt: skip
                 box.on_update(lambda _, box=box, value=value: self._on_lock(box, value))
                 value.on_update(lambda _: self.on_change())
                 self.lock_boxes.append(box)
@@ -139,19 +141,34 @@ class ConstraintControls:
     def _on_near(self) -> None:
         if not (self.stay_near.value or self.follow.value):
             self.largest_jump = 0.0
+        if not self.follow.value and self.highlight_set is not None:
+            # follow mode had set the highlight to the sample it kept: give "best" back (finding 8), unless the
+            # user chose another sample since
+            panel, number = self.highlight_set
+            self.highlight_set = None
+            if panel.highlight.value == number:
+                panel.highlight.value = "best"
         self.on_change()
 
     # ------------------------------------------------------------------ what a solve asks for
 
     def constraints(self) -> tuple:
         """The panel's constraints now, as ikdp constraint objects."""
-        pairs = zip(self.lock_boxes, self.lock_values, strict=True)
-        locks = {index: value.value for index, (box, value) in enumerate(pairs) if box.value}
+        locks = self.locks()[0]
         with self.lock:
             obstacles = [(entry["position"], entry["radius"]) for entry in self.obstacles]
         near = self.last_pose if (self.stay_near.value or self.follow.value) else None
         kind = "full pose" if self.target_kind is None else str(self.target_kind.value)
         return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar", target_kind=kind)
+
+    def locks(self) -> tuple[dict[int, float], list[str]]:
+        """The locked joints' values (rad or m) from the fields, and a note per value wrapped or clamped."""
+        locks, notes = {}, []
+        for index, (field, box, value) in enumerate(zip(self.fields, self.lock_boxes, self.lock_values, strict=True)):
+            if box.value:
+                locks[index], note = field.joint_value(value.value)
+                notes += [note] if note else []
+        return locks, notes
 
     # ------------------------------------------------------------------ what the target asks for, in the scene
 
@@ -163,12 +180,12 @@ class ConstraintControls:
             self.target_marks = None
         if self.target_kind is None:
             return
-        writer.gizmo.disable_rotations = kind == "position only"
+        writer.view.gizmo.disable_rotations = kind == "position only"
         axis = TARGET_KINDS.get(kind)
         if kind == "full pose" or axis is None:
             return
         self.target_marks = self.server.scene.add_line_segments(
-            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.reach), FREE_AXIS_COLOR,
+            "/target/free_axis", free_axis_segments(np.asarray(axis), writer.view.reach), FREE_AXIS_COLOR,
             thickness=4.0, thickness_units="screen",
         )  # fmt: skip
 
@@ -225,15 +242,21 @@ class ConstraintControls:
 
     # ------------------------------------------------------------------ after a solve
 
-    def after_solve(self, solved, panel) -> None:
-        """Worker thread, once a solve is posted: keep the pose (follow: the nearest sample), write the readouts."""
+    def after_solve(self, solved, panel, writer) -> None:
+        """Drawing loop's thread, as a solve goes on screen: keep the pose (follow: the nearest sample that
+        reaches, highlighted), write the readouts."""
         with self.model_lock:
+            writer.followed = bool(self.follow.value)
             if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
                 self._after_solve(solved, panel)
+                self._draw_overlay(solved)
 
     def _after_solve(self, solved, panel) -> None:
         view = solved.view
         errors = view.final_error  # a robot's counts the rotation (or a free axis's angle): a turned hand is a miss
+        if solved.state_violation is not None and holds(solved.state_violation[-1]).any():
+            errors = np.where(holds(solved.state_violation[-1]), errors, np.inf)  # a sample through an obstacle
+            # is no candidate (finding 4)
         following = bool(self.follow.value)
         choice, jump = follow_choice(
             self.solver.arm, solved.final_angles, self.last_pose if following else None, errors
@@ -241,29 +264,14 @@ class ConstraintControls:
         if following:
             self.largest_jump = max(self.largest_jump, jump)
             panel.highlight.value = str(choice + 1)
+            self.highlight_set = (panel, str(choice + 1))
         elif panel.highlight.value != "best":
             choice = min(int(panel.highlight.value), len(errors)) - 1
         self.last_pose = solved.final_angles[choice].copy()
-        self._write_readout(solved, choice, jump if following else None)
-        self.post(Call(lambda writer: self._draw_overlay(writer.solved)))
-
-    def _write_readout(self, solved, choice: int, jump: float | None) -> None:
-        lines = []
-        measure = getattr(solved.view, "rotation_measure", "rotation")
-        if measure == "none":
-            lines.append("target: **position only**, any hand rotation")
-        elif measure != "rotation":
-            lines.append(f"target: the hand's **{measure} free**, any turn about it")
-        if solved.state_violation is not None:
-            met = int(holds(solved.state_violation[-1]).sum())
-            first = first_holding_state(solved.state_violation[:, choice])
-            states = len(solved.state_violation) - 1
-            held = "never" if first is None else f"from state {first} of {states} (t = {solved.view.labels[first]})"
-            lines.append(f"constraints met by {met} of {len(solved.state_violation[-1])} raw samples")
-            lines.append(f"sample {choice + 1}: holds {held}")
-        if jump is not None:
-            lines.append(f"joint jump {jump:.3f} rad, largest so far **{self.largest_jump:.3f} rad**")
-        self.readout.content = "  \n".join(lines) if lines else "No constraint."
+        reaches = float(view.final_error.min()) <= REACH_FRACTION * self.solver.arm.span
+        self.readout.content = readout_text(
+            solved, choice, jump if following else None, self.largest_jump, self.locks()[1], reaches=reaches
+        )
 
     def _remove_overlay(self) -> None:
         if self.overlay is not None:

@@ -9,18 +9,16 @@ exist only while the panel's toggle is on.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 import viser
 
 import ikdp
+from ikdp_viz.camera import Extent
 from ikdp_viz.joint_space import FieldCache, two_link_solutions
 from ikdp_viz.joint_space_panel import JointSpaceControls
 from ikdp_viz.joint_space_scene import (
     Square,
     arrow_segments,
-    camera_over_both,
     cross_segments,
     curve_segments,
     frame_segments,
@@ -28,26 +26,25 @@ from ikdp_viz.joint_space_scene import (
     model_timestep,
     square_beside,
 )
-from ikdp_viz.solving import Solved
+from ikdp_viz.planar_kind import JOINT_SPACE_DOT
 
 FRAME_STRONG = (140, 140, 140)  # the border and the zero lines
 FRAME_WEAK = (196, 196, 196)  # the lines at +-pi/2
 ARROW = (185, 150, 215)  # the denoiser's arrows: a light shade of the x̂0 ghost's purple
-SOLUTION = (220, 25, 25)  # the target's red
+SOLUTION = (220, 25, 25)  # the target's red: the exact solution set (N = 2)
+FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red (finding 6)
 BACKING = (255, 255, 255)
 # Heights above the square, in units of the reach, so that the top-down view draws samples over
 # solutions over arrows over the frame.
 ARROW_LIFT, SOLUTION_LIFT, SAMPLE_LIFT = 0.002, 0.004, 0.006
 
-Camera = tuple[tuple[float, float, float], tuple[float, float, float]]
-
 
 class JointSpaceNodes:
     """Draws the joint-space view of the state on screen, or removes it when the panel's toggle is off."""
 
-    def __init__(self, server: viser.ViserServer, controls: JointSpaceControls, arm_camera: Callable[[float], Camera]):
+    def __init__(self, server: viser.ViserServer, controls: JointSpaceControls):
         self.server, self.controls = server, controls
-        self._arm_camera = arm_camera  # the camera of the workspace alone, restored when the view goes
+        self.clear_of: float | None = None  # x the square stays right of (the arm view's ground grid edge)
         self.fields = FieldCache()
         self.frame = self.arrows = self.solutions = self.samples = self.backing = None
         self.labels: list = []
@@ -65,15 +62,24 @@ class JointSpaceNodes:
         self._remove()
         self.fields.clear()
 
-    def draw(self, solver: ikdp.Solver, solved: Solved, state: int, colors: np.ndarray, highlight: int) -> None:
-        """Write the view for `state` of `solved`; `colors` (K, 3) are the arms' at that state. Call in an atomic."""
+    def extent(self) -> Extent | None:
+        """The square's part of the plane while it is shown (the drawing loop frames the camera over it)."""
+        if self.square is None:
+            return None
+        (cx, cy), half = self.square.centre, self.square.side / 2
+        return Extent(cx - half, cx + half, cy - 1.1 * half, cy + 1.1 * half)  # its labels above and below
+
+    def draw(self, solver: ikdp.Solver, frame) -> None:
+        """Write the view for the frame's state (frame.py); the dots take its joint-space colours. In an atomic."""
+        solved, state, highlight = frame.solved, frame.state, frame.highlight
+        if solver.arm.kind != "planar":
+            return
         num_joints = solver.num_links
         self.controls.fit(num_joints)
-        wanted = self.controls.show.value and solver.arm.kind == "planar" and num_joints >= 2
+        wanted = self.controls.show.value and num_joints >= 2
         if not wanted:
             if self.shown:
                 self._remove()
-                self._move_cameras(self._arm_camera(solver.reach[1]))
             return
         if not self.shown:
             self._build(solver.reach[1])
@@ -87,9 +93,11 @@ class JointSpaceNodes:
         self.last_field = field
         self.arrows.points = arrow_segments(square, field.starts, field.arrows, count, ARROW_LIFT * reach)
         self.samples.points = square.place(headings[:, list(joints)], SAMPLE_LIFT * reach).astype(np.float32)
-        self.samples.colors = np.asarray(colors, dtype=np.uint8)
+        self.samples.colors = np.asarray(frame.palette.dots, dtype=np.uint8)
         if self._solutions_key != (id(solved), joints):
             self.solutions.points = self._solution_segments(view, joints, SOLUTION_LIFT * reach)
+            self.solutions.colors = np.broadcast_to(np.array(self._solution_color(view), np.uint8),
+                                                    self.solutions.points.shape).copy()  # fmt: skip
             self._solutions_key = (id(solved), joints)
         if self._labels_key != joints:
             self._write_labels(joints)
@@ -108,9 +116,12 @@ class JointSpaceNodes:
         finals = link_headings(view.final_joints)[:, list(joints)]  # (K, 2): the solutions found
         return cross_segments(square, finals, lift).astype(np.float32)
 
+    def _solution_color(self, view) -> tuple[int, int, int]:
+        return SOLUTION if view.num_links == 2 else FOUND
+
     def _build(self, reach: float) -> None:
         scene = self.server.scene
-        square = self.square = square_beside(reach)
+        square = self.square = square_beside(reach, self.clear_of)
         (cx, cy), half = square.centre, square.side / 2
         corners = np.array([[cx - half, cy - half, 0], [cx + half, cy - half, 0], [cx + half, cy + half, 0],
                             [cx - half, cy + half, 0]]) + (0.0, 0.0, square.z - 0.004 * reach)  # fmt: skip
@@ -136,7 +147,6 @@ class JointSpaceNodes:
             point_shape="circle", precision="float32",
         )  # fmt: skip
         self._solutions_key = None
-        self._move_cameras(camera_over_both(reach))
 
     def _write_labels(self, joints: tuple[int, int]) -> None:
         """The axes' names and the title, re-created only when the joints change (not edited every frame).
@@ -153,6 +163,11 @@ class JointSpaceNodes:
             add("/joint_space/y_label", second, position=(cx - 1.04 * half, cy, 0.0), anchor="center-right"),
             add("/joint_space/title", f"{first}, {second} (headings): arrows x_t → x̂0 at the step shown",
                 position=(cx, cy + 1.04 * half, 0.0), anchor="bottom-center"),
+            # the ends of each axis (finding 6: no ±π ticks): -π and π are the same heading, the torus's seam
+            add("/joint_space/x_low", "−π", position=(cx - half, cy - 1.01 * half, 0.0), anchor="top-center"),
+            add("/joint_space/x_high", "π", position=(cx + half, cy - 1.01 * half, 0.0), anchor="top-center"),
+            add("/joint_space/y_low", "−π", position=(cx - 1.01 * half, cy - half, 0.0), anchor="center-right"),
+            add("/joint_space/y_high", "π", position=(cx - 1.01 * half, cy + half, 0.0), anchor="center-right"),
         ]  # fmt: skip
         self._labels_key = joints
 
@@ -162,11 +177,3 @@ class JointSpaceNodes:
                 handle.remove()
         self.frame = self.arrows = self.solutions = self.samples = self.backing = None
         self.labels, self.square, self._solutions_key, self._labels_key = [], None, None, None
-
-    def _move_cameras(self, camera: Camera) -> None:
-        """Frame what is drawn now, in every open tab and for tabs opened later."""
-        position, look_at = camera
-        self.server.initial_camera.position, self.server.initial_camera.look_at = position, look_at
-        for client in self.server.get_clients().values():
-            with client.atomic():
-                client.camera.position, client.camera.look_at = position, look_at

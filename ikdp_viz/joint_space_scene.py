@@ -43,16 +43,18 @@ class Square:
         return self.side / (2 * math.pi)
 
 
-def square_beside(reach: float) -> Square:
-    """The square to the right of a workspace of radius `reach` (the base at the origin), level with it."""
-    return Square(centre=((1 + GAP + SIDE / 2) * reach, 0.0), side=SIDE * reach, z=0.0)
+def square_beside(reach: float, clear_of: float | None = None) -> Square:
+    """The square to the right of a workspace of radius `reach` (the base at the origin), level with it; with
+    `clear_of`, its left edge past x = clear_of too (the ground grid's edge: it overlapped the grid, finding 6)."""
+    left = (1 + GAP) * reach if clear_of is None else max((1 + GAP) * reach, clear_of + 0.5 * GAP * reach)
+    return Square(centre=(left + SIDE / 2 * reach, 0.0), side=SIDE * reach, z=0.0)
 
 
 def camera_over_both(reach: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """(position, look_at) of a camera above the workspace and the square together, as camera_fit frames one."""
     left, right = -reach, (1 + GAP + SIDE) * reach
     half, middle = (right - left) / 2, (right + left) / 2
-    distance = 1.55 * half  # scene_writer.camera_fit's framing of a radius-`half` disc
+    distance = 1.55 * half  # camera.camera_fit's framing of a radius-`half` disc
     return (middle, -1e-3 * distance, distance), (middle, 0.0, 0.0)
 
 
@@ -102,7 +104,11 @@ def cross_segments(square: Square, points: np.ndarray, lift: float) -> np.ndarra
     centres = square.place(np.asarray(points, dtype=np.float64).reshape(-1, 2), lift)  # (P, 3)
     arm = CROSS_CELLS * square.side
     strokes = [np.stack((centres - offset, centres + offset), axis=1) for offset in ((arm, arm, 0), (arm, -arm, 0))]
-    return np.stack(strokes, axis=1).reshape(-1, 2, 3)
+    segments = np.stack(strokes, axis=1).reshape(-1, 2, 3)
+    (cx, cy), half = square.centre, square.side / 2  # a cross on an edge is cut there (finding 6: they spilled)
+    segments[..., 0] = np.clip(segments[..., 0], cx - half, cx + half)
+    segments[..., 1] = np.clip(segments[..., 1], cy - half, cy + half)
+    return segments
 
 
 def curve_segments(square: Square, curve: np.ndarray, lift: float) -> np.ndarray:

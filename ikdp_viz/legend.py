@@ -1,6 +1,6 @@
 """The panel's legend: one line per colour in the scene, its swatch drawn in that colour (HTML, no viser here).
 
-Each scene writer lists what it draws (`SceneWriter.legend_entries`); this file only turns
+Each arm kind lists what its scene draws (`legend_entries`, planar_kind.py and chain_kind.py); this file only turns
 the list into the small HTML block viser's `gui.add_html` shows.
 """
 

@@ -48,7 +48,7 @@ def cross_mesh(half_size: float, width: float | None = None) -> trimesh.Trimesh:
     bars = []
     for angle in (np.pi / 4, -np.pi / 4):
         # flat, centred on z = 0: the scene writer lifts it over the arms and places it on the camera's ray
-        # through the target (scene_writer.over_the_point), which is exact for one height only
+        # through the target (camera.over_the_point), which is exact for one height only
         bar = trimesh.creation.box(extents=(2 * half_size, width, 0.1 * width))
         bar.apply_transform(trimesh.transformations.rotation_matrix(angle, (0, 0, 1)))
         bars.append(bar)

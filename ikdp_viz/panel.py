@@ -158,7 +158,7 @@ def build_panel(
         seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
         new_seed = gui.add_checkbox("new seed each move", False)
         refine = gui.add_checkbox(
-            "refine (DLS)", False, hint="Damped-least-squares polish, drawn in green beside the raw pose"
+            "refine (DLS)", False, hint="Damped-least-squares polish, drawn in teal beside the raw pose"
         )
         refine_steps = gui.add_slider(
             "refine steps", min=1, max=50, step=1, initial_value=DEFAULT_REFINE_STEPS, disabled=True

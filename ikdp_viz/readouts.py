@@ -17,19 +17,25 @@ def target_text(target: np.ndarray, clamped: bool, reach: tuple[float, float]) -
     return text
 
 
-def best_note(view: SolveView, highlight: int) -> str:
-    """ ", the best by ..." when `highlight` is the best sample, naming the error it is ranked by.
+def sample_note(view, highlight: int, reason: str | None, error_name: str, raw_best: int) -> tuple[str, str]:
+    """(" (why this sample, ranked by what)", a line naming the best raw sample or "") for the error line.
 
-    With refinement "best" ranks the refined poses, so the raw pose drawn can be a poor one (issue 19):
-    the sample with the best raw tip error is named beside it when it is another one.
+    The note sits in parentheses before the numbers, which are the highlighted sample's: with
+    refinement, "best" ranks the refined poses, and the sample whose raw pose ranks first is named
+    on a line of its own (issue 25, finding 7: named before the numbers, it read as their owner).
+    `reason` says why this sample is followed ("the best", "kept by follow mode", "chosen in the panel");
+    None: "the best" when it is, else nothing.
     """
-    if highlight != view.best_sample():
-        return ""
-    if not view.refined:
-        return ", the best by tip error at t = 0"
-    raw_best = int(np.argmin(view.tip_error[-1]))
-    raw = "" if raw_best == highlight else f"; by raw tip error at t = 0, sample {raw_best + 1}"
-    return f", the best by refined tip error{raw}"
+    if reason is None:
+        reason = "the best" if highlight == view.best_sample() else ""
+    best = reason.startswith("the best")
+    if best:
+        reason += f" by refined {error_name}" if view.refined else f" by {error_name} at t = 0"
+    note = f" ({reason})" if reason else ""
+    raw_line = ""
+    if view.refined and best and raw_best != highlight:
+        raw_line = f"by raw {error_name} at t = 0 the best is sample {raw_best + 1}"
+    return note, raw_line
 
 
 def solve_text(
@@ -42,21 +48,25 @@ def solve_text(
     refine_steps: int,
     solve_seconds: float,
     error: str | None = None,
+    reason: str | None = None,
 ) -> str:
     """The step shown, the highlighted sample's tip error now and at t = 0, the K samples' median, the solve.
 
-    `highlight` is 0-based; the text numbers samples as people count, from 1.
+    `highlight` is 0-based; the text numbers samples as people count, from 1. `reason`: see `sample_note`.
     """
     last = view.num_states - 1
+    note, raw_line = sample_note(view, highlight, reason, "tip error", int(np.argmin(view.tip_error[-1])))
     lines = [
         f"**Step** {state} of {last} (t = {int(view.labels[state])})",
-        f"**Tip error**, sample {highlight + 1} of {view.num_samples}{best_note(view, highlight)}: "
+        f"**Tip error**, sample {highlight + 1} of {view.num_samples}{note}: "
         f"{view.tip_error[state, highlight]:.4f} now, {view.tip_error[last, highlight]:.4f} at t = 0",
         f"median of K = {view.num_samples}: {np.median(view.tip_error[state]):.4f} now, "
         f"{np.median(view.tip_error[last]):.4f} at t = 0",
     ]
     if view.refined:
         lines.append(f"refined ({refine_steps} DLS steps): {view.final_tip_error[highlight]:.2e}")
+    if raw_line:
+        lines.append(raw_line)
     lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler}, {last} steps, seed {seed})")
     if error:
         lines.append(f"**Last solve failed** {error}")

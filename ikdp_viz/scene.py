@@ -24,7 +24,7 @@ ACCENT_FAINT = (205, 222, 245)  # the highlighted sample at t = T
 ACCENT_DARK = (20, 90, 210)  # the highlighted sample at t = 0
 TIP_FAINT = (248, 222, 190)  # tip markers at t = T
 TIP_DARK = (235, 120, 10)  # tip markers at t = 0
-REFINED = (25, 160, 70)  # the damped-least-squares polish of the final pose
+REFINED = (0, 150, 190)  # the damped-least-squares polish of the final pose: teal, not the green of "constraints hold"
 FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
 ERROR_FLOOR = 1e-6  # tip errors below this are charted at it (log10 of 0 is -inf)
 # Heights above the plane, in joint radii, that set what a top-down view draws on top of what: the
@@ -275,3 +275,14 @@ def error_curves(view: SolveView, highlight: int, state: int, *, scale: float = 
     marker = np.full(view.num_states, np.nan)
     marker[state] = chosen[state]
     return (view.labels[order].astype(np.float64), median[order], chosen[order], marker[order])
+
+
+def compare_curve(view, compare, highlight: int, *, scale: float = 1.0) -> np.ndarray:
+    """log10 of the followed sample's tip error under the second sampler, on the main chart's x (t = 0 .. T).
+
+    Its states sit at fewer diffusion times than DDPM's: between two, the line joins them.
+    """
+    x = np.sort(view.labels).astype(np.float64)
+    order = np.argsort(compare.labels, kind="stable")
+    values = np.log10(np.maximum(scale * compare.tip_error[:, highlight], ERROR_FLOOR))[order]
+    return np.interp(x, compare.labels[order].astype(np.float64), values)

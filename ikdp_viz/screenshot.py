@@ -67,6 +67,9 @@ class ScreenshotConfig:
     wait: float = 6.0  # seconds a saved page plays before the picture
     target_kind: str = "full pose"  # Constraints folder, pose models: "position only", "free x axis", ... (open)
     obstacle: tuple[float, float, float, float] | None = None  # Constraints: drop one at x y z radius (open)
+    # the first minute: the command line's viewer (the first solve waits at pure noise, plays when the tab opens,
+    # over 4 s), one picture at each of these seconds into the animation: <output>_<i>.png
+    moments: tuple[float, ...] | None = None
 
 
 def screenshot_saved_page(page_path: Path, output: Path, *, chromium: str, size: tuple[int, int], wait: float) -> None:
@@ -77,9 +80,7 @@ def screenshot_saved_page(page_path: Path, output: Path, *, chromium: str, size:
         browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": size[0], "height": size[1]})
         page.goto(Path(page_path).resolve().as_uri())
-        page.add_style_tag(content=NO_FADE_CSS)
-        with contextlib.suppress(Exception):  # the software-rendering notice covers a corner of the scene
-            page.locator(".mantine-Notification-closeButton").first.click(timeout=10_000)
+        page.add_style_tag(content=NO_FADE_CSS)  # a recording shows no notification (record.with_legend)
         time.sleep(wait)
         output.parent.mkdir(parents=True, exist_ok=True)
         page.screenshot(path=str(output))
@@ -101,8 +102,9 @@ def main(argv: list[str] | None = None) -> None:
 
     import ikdp
     from ikdp.shipped import shipped_dir
-    from ikdp_viz.__main__ import checkpoint_path
     from ikdp_viz.app import VizApp, list_checkpoints
+    from ikdp_viz.command_line import checkpoint_path
+    from ikdp_viz.panel import DEFAULT_DURATION
 
     torch.set_num_threads(1)
     path = checkpoint_path(args.ckpt)
@@ -115,8 +117,9 @@ def main(argv: list[str] | None = None) -> None:
         solver,
         checkpoints=checkpoints,
         solve_now=False,
-        animation_seconds=0.0,
+        animation_seconds=0.0 if args.moments is None else DEFAULT_DURATION,
         target=None if args.target is None else tuple(args.target),
+        wait_for_tab=args.moments is not None,
     )
     app.panel.samples.value = args.samples
     app.panel.seed.value = args.seed
@@ -138,7 +141,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.obstacle is not None:
         constraints.add_obstacle(position=args.obstacle[:3], radius=args.obstacle[3])
     app.move_target(app.target)  # args.target pulled into the workspace, or the arm's first target
-    app.wait_until_still(60)
+    app.wait_until_still(60)  # (waiting at pure noise for the tab, with `moments`)
     if args.timestep is not None:
         app.panel.timestep.value = args.timestep
     if args.prior:
@@ -147,8 +150,21 @@ def main(argv: list[str] | None = None) -> None:
         with sync_playwright() as playwright:
             browser, page = open_viewer_page(playwright, server, chromium=args.chromium, viewport=args.size)
             page.add_style_tag(content=NO_FADE_CSS)
-            with contextlib.suppress(Exception):  # the software-rendering notice covers a corner of the scene
-                page.locator(".mantine-Notification-closeButton").first.click(timeout=5_000)
+            if args.moments is not None:  # the page as a newcomer sees it: nothing clicked
+                # The tab's connection played the denoising; software WebGL's first screenshots take seconds, so
+                # after a warm-up picture the same animation is played again (Play at the end starts from t = T)
+                app.wait_until_still(60)
+                page.screenshot()
+                app.toggle_play()
+                connected = time.monotonic()
+                for index, moment in enumerate(args.moments):
+                    time.sleep(max(0.0, connected + moment - time.monotonic()))
+                    name = args.output.with_name(f"{args.output.stem}_{index + 1}{args.output.suffix}")
+                    name.parent.mkdir(parents=True, exist_ok=True)
+                    page.screenshot(path=str(name))
+                    print(f"wrote {name} ({time.monotonic() - connected:.1f} s into the animation)")
+                browser.close()
+                return
             page.get_by_text("Sampling", exact=True).click()  # fold it, so the readouts and the plot show
             if constrained:  # open the Constraints folder (at the panel's foot, under the readouts)
                 page.get_by_text("Constraints", exact=True).click()

@@ -7,6 +7,7 @@ knows how.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from dataclasses import dataclass
@@ -16,10 +17,15 @@ import torch
 
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.chain_scene import ChainView
+from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import checkable, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
+
+NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
+PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first (deliver 6): 5 steps, about 40 ms here
+REACH_FRACTION = 0.01  # a returned pose within this share of the arm's span reaches the target (1e-2: 0.04 bone
+# lengths on ikdp_n4, 12 mm on the Panda; ikdp_n4 unpulled lands 0.010 away, a pull that lost the target 0.15)
 
 
 @dataclass(frozen=True)
@@ -46,11 +52,36 @@ class Solved:
     view: SolveView | ChainView  # what is drawn (arm_kinds picks which)
     trail_points: np.ndarray  # (S+1, K*N, 2, 3) every state's polylines, see scene.trail_points
     solve_seconds: float  # solver.solve alone
-    compare: SolveView | None = None  # the same noise through request.compare_sampler (planar arms)
+    compare: SolveView | ChainView | None = None  # the same noise through request.compare_sampler
     compare_trail: np.ndarray | None = None  # its trail points, as trail_points
     final_angles: np.ndarray | None = None  # (K, J) the returned joint values (refined when asked)
     state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation (checkable ones: not
     # a partial target alone)
+    pull_missed: float | None = None  # "stay near": the best error of the pulled samples, which all missed the
+    # target, so the solve shown is the one without the pull (issue 25, finding 1); None: the pull was kept or off
+    preview_of: str | None = None  # a fast solve shown while the full one with this sampler runs (deliver 6)
+
+
+def preview_request(request: SolveRequest) -> SolveRequest | None:
+    """A fast solve to show first while `request` runs, or None: during a robot's drag (not animated), when the
+    sampler takes many steps. DPM-Solver++(2M) in 5 steps: in 10, a Panda solve took 12 ms unloaded
+    (benchmarks/viz_robot_settings.py) but 73 ms on a shared 2-core machine, against DDPM's 120-740 ms; so the
+    arm follows the gizmo at once (issue 25, deliver 6; benchmarks/viz_robot_drag.py)."""
+    sampler, steps = PREVIEW_SAMPLER
+    if request.animate or request.solver.arm.kind == "planar" or request.sampler == sampler:
+        return None
+    if (request.steps or request.solver.timesteps) <= steps:
+        return None
+    return dataclasses.replace(request, sampler=sampler, steps=steps, compare_sampler=None, compare_steps=None)
+
+
+def landing_error(result) -> float:
+    """The best returned pose's miss of a one-target solve: its tip error (a robot: plus its rotation, ranked as
+    the chain view ranks samples)."""
+    error = result.tip_error[0]  # (K,)
+    if result.rotation_error is not None:
+        error = error + METRES_PER_RADIAN * result.rotation_error[0]
+    return float(error.min())
 
 
 def stop_when(cancel: threading.Event):
@@ -58,39 +89,59 @@ def stop_when(cancel: threading.Event):
     return lambda step_index, timestep, state, estimate: cancel.is_set()
 
 
-def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solved:
+def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=None) -> Solved:
     """Run the reverse diffusion for one request and build its drawable arrays (worker thread).
 
-    Raises Cancelled, part-way, once `cancel` is set: a newer request has arrived.
+    Raises Cancelled, part-way, once `cancel` is set: a newer request has arrived. `preview(solved)`, when
+    given, receives a fast solve of the same target first where `preview_request` makes one.
     """
     cancel = cancel if cancel is not None else threading.Event()
     if cancel.is_set():
         raise Cancelled
+    fast = None if preview is None else preview_request(request)
+    if fast is not None:
+        preview(dataclasses.replace(solve(fast, cancel), preview_of=request.sampler))
     generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
     started = time.perf_counter()
     solver = request.solver
     # x_T drawn as the solve itself would draw it first: the main solve is the same with or without a comparison
     noise = torch.randn((1, request.num_samples, solver.noise_dim), generator=generator, device=solver.device)
-    result = request.solver.solve(
-        request.target[None],  # (1, target_dim): one target
-        num_samples=request.num_samples,
-        sampler=request.sampler,
-        steps=request.steps,
-        refine_steps=request.refine_steps,
-        generator=generator,
-        return_trajectory=True,
-        return_estimates=True,
-        callback=stop_when(cancel),
-        initial_noise=noise,
-        constraints=list(request.constraints),
-    )
-    if result.stopped:
-        raise Cancelled
+    after_noise = generator.get_state()
+
+    def run(constraints) -> ikdp.SolveResult:
+        generator.set_state(after_noise)  # a second run (without the pull) draws the same sampling noise
+        result = solver.solve(
+            request.target[None],  # (1, target_dim): one target
+            num_samples=request.num_samples,
+            sampler=request.sampler,
+            steps=request.steps,
+            refine_steps=request.refine_steps,
+            generator=generator,
+            return_trajectory=True,
+            return_estimates=True,
+            callback=stop_when(cancel),
+            initial_noise=noise,
+            constraints=list(constraints),
+        )
+        if result.stopped:
+            raise Cancelled
+        return result
+
+    result = run(request.constraints)
+    pull_missed = None
+    if any(item.name == NEAR_POSE for item in request.constraints):
+        # As ikdp.track does: a pull toward the last pose that leaves every sample short of the target is not
+        # kept; the same noise solved without it reaches, and the readouts say which is shown.
+        best = landing_error(result)
+        if best > REACH_FRACTION * solver.arm.span:
+            unpulled = run(tuple(item for item in request.constraints if item.name != NEAR_POSE))
+            if landing_error(unpulled) < best:
+                result, pull_missed = unpulled, best
     solve_seconds = time.perf_counter() - started
     partial = partial_target(request.constraints)  # the errors measure what the target asks (position only, ...)
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
     compare = compare_trail = None
-    if request.compare_sampler is not None and arm_kind(solver).name == "planar":
+    if request.compare_sampler is not None:
         other = solver.solve(
             request.target[None], num_samples=request.num_samples, sampler=request.compare_sampler,
             steps=request.compare_steps, return_trajectory=True,
@@ -100,6 +151,10 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None) -> Solve
         if other.stopped:
             raise Cancelled
         compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
-    checked = checkable(request.constraints)  # a partial target alone has nothing to hold or fail: its errors say
-    violation = state_violation(request.solver, request.constraints, result) if checked else None
-    return Solved(request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation)
+    # a pull is no constraint that holds or fails (it was counted as holding for every sample, finding 1), nor is a
+    # partial target, which the errors measure
+    checked = tuple(item for item in request.constraints if item.name != NEAR_POSE)
+    violation = state_violation(request.solver, checked, result) if checkable(checked) else None
+    return Solved(
+        request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation, pull_missed
+    )

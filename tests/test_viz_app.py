@@ -241,10 +241,10 @@ def test_drawing_from_the_prior_shows_k_prior_poses_until_the_next_solve(app, so
     assert joints.shape == (16, solver.num_links + 1, 2) and np.allclose(joints[:, 0], 0.0)
     bones = np.linalg.norm(np.diff(joints, axis=1), axis=-1)
     assert np.allclose(bones, solver.lengths)  # real poses of this arm
-    assert np.allclose(app.writer.prior_lines.points[..., :2].reshape(16, -1, 2, 2)[:, :, 0], joints[:, :-1])
+    assert np.allclose(app.writer.view.prior_lines.points[..., :2].reshape(16, -1, 2, 2)[:, :, 0], joints[:, :-1])
     app.move_target((0.2, 1.3))
     settle(app)
-    assert app.writer.prior_lines is None
+    assert app.writer.view.prior_lines is None
 
 
 def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_path):
@@ -255,16 +255,39 @@ def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_pa
     gif, png = app.export(tmp_path)
     view = app.solved.view
     frames = imageio.mimread(gif)
-    assert gif.suffix == ".gif" and len(frames) == min(41, view.num_states) and frames[0].shape[:2] == (480, 480)
+    assert gif.suffix == ".gif" and 2 < len(frames) <= 41 and frames[0].shape[:2] == (480, 480)
     assert not np.array_equal(frames[0], frames[-1])  # the arms move from noise to the final pose
     image = read_png(png.read_bytes())
     assert image.shape == (800, 800, 3) and (image.min(axis=-1) < 100).any()  # dark final poses drawn
     red = (image[..., 0] > 180) & (image[..., 1] < 80) & (image[..., 2] < 80)
+    red[560:, :420] = False  # the legend's box (bottom left) has a red cross of its own
     rows, cols = np.nonzero(red)
     reach = float(np.sum(view.lengths))
     centre = (np.array([cols.mean(), rows.mean()]) - 400) / 400 * 1.05 * reach * np.array([1, -1])
     assert np.allclose(centre, view.target, atol=0.1 * reach)  # the cross where the target is
     assert f"seed{app.solved.request.seed}" in gif.name and png.name.endswith("_trail.png")
+
+
+def test_the_gif_keeps_the_viewers_clock_and_colours(app, tmp_path):
+    """Finding 12 (issue 25): the GIF gave every step the same time (half of it pure noise) and drew the other
+    samples black at t = 0; it follows the viewer's noise-level clock and its light grey now."""
+    from PIL import Image
+
+    from ikdp_viz.downloads import export_picture
+    from ikdp_viz.emphasis import OTHERS_FINAL
+    from ikdp_viz.export import gif_states
+
+    app.panel.duration.value = 4.0
+    gif, _ = app.export(tmp_path)
+    with Image.open(gif) as image:
+        durations = [image.seek(index) or image.info["duration"] for index in range(image.n_frames)]
+    picture = export_picture(app.solved, app.writer.settings(), app.solver)
+    states, seconds = gif_states(picture.offsets, 4.0, 41)
+    assert np.allclose(durations, 1000 * seconds, atol=20)  # GIF durations are whole 10 ms
+    noisy = states < picture.num_states // 2  # the first half of the states, t = T .. T/2: mostly noise
+    assert seconds[noisy].sum() < 0.25 * seconds.sum()  # quickly past, as in the viewer (equal steps: half)
+    others = np.arange(app.solved.view.num_samples) != picture.highlight
+    assert (picture.arms[-1][others] == OTHERS_FINAL).all()  # the viewer's light grey, not black
 
 
 def test_the_cross_lies_on_the_cameras_ray_through_the_target_above_every_arm(app):
@@ -275,7 +298,7 @@ def test_the_cross_lies_on_the_cameras_ray_through_the_target_above_every_arm(ap
         camera = np.asarray(app.server.initial_camera.position)
         cross = np.asarray(app.cross.position)
         assert np.linalg.norm(np.cross(cross - ground, camera - ground)) < 1e-9  # the same pixel as the target
-        sizes = app.writer.sizes
+        sizes = app.writer.view.sizes
         assert cross[2] - 0.05 * sizes.cross > HIGHLIGHT_LIFT * sizes.joint + sizes.tip  # over the highlighted tip
 
 
@@ -469,7 +492,7 @@ def test_one_joint_on_both_axes_moves_the_other_dropdown_on(app):
     controls.second.value = "θ3"
     assert (controls.first.value, controls.second.value) == ("θ1", "θ3") and controls.joints() == (0, 2)
     app.writer.flush()
-    labels = [label.text for label in app.writer.joint_space.labels[:2]]
+    labels = [label.text for label in app.writer.stage.joint_space.labels[:2]]
     assert labels == ["θ1", "θ3"]  # the square's axes say what the dropdowns say
     controls.show.value = False
 
@@ -559,7 +582,7 @@ def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
 def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
     from ikdp_viz.legend import css
     from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK
-    from ikdp_viz.scene_writer import ESTIMATE, PRIOR, TARGET_RED
+    from ikdp_viz.style import ESTIMATE, PRIOR, TARGET_RED
 
     legend = app.panel.learn.legend.content
     for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
@@ -568,3 +591,26 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
         assert words in legend
     app.panel.learn.trail_of.value = "all samples"
     assert "trails of all samples" in app.panel.learn.legend.content
+
+
+def test_the_page_opens_on_pure_noise_and_plays_when_a_tab_connects(solver):
+    """Finding 11 (issue 25): the command line's viewer played the first denoising before anyone connected, so a
+    tab opened on the finished pose; and viser's software-WebGL toast covered the scene."""
+    from types import SimpleNamespace
+
+    from ikdp_viz.messages import TabOpened
+
+    sent = []
+    tab = SimpleNamespace(_websock_connection=SimpleNamespace(queue_message=sent.append))
+    with running_app(solver, animation_seconds=1.0, wait_for_tab=True) as app:
+        assert app.wait_until_still(60)
+        assert app.solved is not None and app.state == 0 and not app.playing  # pure noise, waiting
+        app.writer.post(TabOpened(tab))
+        app.writer.flush()
+        assert app.playing and app.state == 0  # plays from t = T, holding pure noise a moment first
+        assert [message.uuid for message in sent] == ["webgl-software-rendering"]
+        settle(app)
+        assert app.state == app.solved.view.num_states - 1
+        app.writer.post(TabOpened(tab))  # a second tab: the solve was seen, nothing replays
+        app.writer.flush()
+        assert not app.playing

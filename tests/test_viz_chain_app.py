@@ -17,7 +17,7 @@ from viz_helpers import running_app, settle
 
 import ikdp
 from ikdp_viz.chain_scene import gizmo_pose, mesh_poses, skeleton_segments
-from ikdp_viz.chain_scene_writer import ChainSceneWriter
+from ikdp_viz.robot_view import RobotView
 
 K = 4
 
@@ -34,7 +34,7 @@ def drag_pose(app, position, wxyz, phase: str = "end") -> None:
     """Do what viser does when the page drags the 6-DoF gizmo: set its pose, then fire its callback."""
     import viser
 
-    gizmo = app.writer.gizmo
+    gizmo = app.writer.view.gizmo
     gizmo._impl.position, gizmo._impl.wxyz = np.asarray(position, float), np.asarray(wxyz, float)
     event = viser.TransformControlsEvent(client=None, client_id=None, target=gizmo, phase=phase)
     asyncio.run_coroutine_threadsafe(app.on_gizmo_update(event), app.server.get_event_loop()).result(timeout=10)
@@ -43,24 +43,24 @@ def drag_pose(app, position, wxyz, phase: str = "end") -> None:
 def test_a_solve_draws_every_sample_as_a_robot_and_a_skeleton(app):
     writer, view = app.writer, app.solved.view
     arm = app.solver.arm
-    assert isinstance(writer, ChainSceneWriter)
+    assert isinstance(writer.view, RobotView)
     assert view.num_samples == K and app.state == view.num_states - 1
-    assert len(writer.ghosts) == len(writer.robot_meshes) == 9  # the Panda's collision meshes, one node each
-    positions, wxyzs = mesh_poses(arm, view.final_joint_values, writer.mesh_links, writer.mesh_offsets)
-    for index, node in enumerate(writer.ghosts):
+    assert len(writer.view.ghosts) == len(writer.view.robot_meshes) == 9  # the Panda's collision meshes, one node each
+    positions, wxyzs = mesh_poses(arm, view.final_joint_values, writer.view.mesh_links, writer.view.mesh_offsets)
+    for index, node in enumerate(writer.view.ghosts):
         np.testing.assert_allclose(node.batched_positions, positions[:, index], atol=1e-5)
         np.testing.assert_allclose(node.batched_wxyzs, wxyzs[:, index], atol=1e-5)
     highlight = app.highlight_index()
     assert highlight == view.best_sample()
-    scales = writer.ghosts[0].batched_scales
+    scales = writer.view.ghosts[0].batched_scales
     assert scales[highlight] == 0 and (np.delete(scales, highlight) == 1).all()  # drawn opaque on its own
-    for index, node in enumerate(writer.robot):
+    for index, node in enumerate(writer.view.robot):
         np.testing.assert_allclose(node.position, positions[highlight, index], atol=1e-5)
-    assert writer.skeletons.points.shape == (K * arm.num_joints, 2, 3)  # one node holds all K skeletons
-    np.testing.assert_allclose(writer.skeletons.points[arm.num_joints - 1, 1], view.points[-1, 0, -1], atol=1e-6)
+    assert writer.view.skeletons.points.shape == (K * arm.num_joints, 2, 3)  # one node holds all K skeletons
+    np.testing.assert_allclose(writer.view.skeletons.points[arm.num_joints - 1, 1], view.points[-1, 0, -1], atol=1e-6)
     hand_position, _ = gizmo_pose(arm, view.final_joint_values[highlight])
-    np.testing.assert_allclose(writer.hand.position, hand_position, atol=1e-6)
-    np.testing.assert_allclose(writer.gizmo.position, app.target[:3], atol=1e-6)
+    np.testing.assert_allclose(writer.view.hand.position, hand_position, atol=1e-6)
+    np.testing.assert_allclose(writer.view.gizmo.position, app.target[:3], atol=1e-6)
     assert "Target" in app.panel.target_text.content and "mm" in app.panel.target_text.content
 
 
@@ -69,18 +69,18 @@ def test_the_timestep_slider_puts_that_state_on_screen(app):
     writer, view = app.writer, app.solved.view
     app.show_state(0)
     assert app.state == 0 and app.panel.timestep.value == app.solver.timesteps
-    np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[0]), atol=1e-6)
-    assert not writer.trail.visible  # nothing before pure noise
-    positions, _ = mesh_poses(app.solver.arm, view.joint_values[0], writer.mesh_links, writer.mesh_offsets)
-    np.testing.assert_allclose(writer.ghosts[3].batched_positions, positions[:, 3], atol=1e-5)
-    colors_at_noise = writer.ghosts[0].batched_colors.copy()
+    np.testing.assert_allclose(writer.view.skeletons.points, skeleton_segments(view.points[0]), atol=1e-6)
+    assert not writer.view.trail.visible  # nothing before pure noise
+    positions, _ = mesh_poses(app.solver.arm, view.joint_values[0], writer.view.mesh_links, writer.view.mesh_offsets)
+    np.testing.assert_allclose(writer.view.ghosts[3].batched_positions, positions[:, 3], atol=1e-5)
+    colors_at_noise = writer.view.ghosts[0].batched_colors.copy()
     assert not app.panel.show_trail.value  # off at start in 3-D
     app.panel.show_trail.value = True
     app.panel.timestep.value = 4  # as the page's slider does: the nearest state
     assert int(view.labels[app.state]) == 4 and app.state == app.solver.timesteps - 4
-    np.testing.assert_allclose(writer.skeletons.points, skeleton_segments(view.points[app.state]), atol=1e-6)
-    assert writer.trail.visible and len(writer.trail.points) == (app.state + 1) * K  # the hands' paths so far
-    assert (writer.ghosts[0].batched_colors.astype(int) <= colors_at_noise).all()  # darker toward t = 0
+    np.testing.assert_allclose(writer.view.skeletons.points, skeleton_segments(view.points[app.state]), atol=1e-6)
+    assert writer.view.trail.visible and len(writer.view.trail.points) == (app.state + 1) * K  # the hands' paths so far
+    assert (writer.view.ghosts[0].batched_colors.astype(int) <= colors_at_noise).all()  # darker toward t = 0
 
 
 def test_the_gizmo_sets_the_pose_target(app):
@@ -97,19 +97,19 @@ def test_refine_shows_the_polished_error_in_millimetres_and_degrees(app):
     app.panel.refine.value = True
     settle(app)
     view = app.solved.view
-    assert view.refined and app.writer.refined_lines.visible
+    assert view.refined and app.writer.view.refined_lines.visible
     text = app.panel.readout_text.content
     assert re.search(r"refined \(5 DLS steps\): \d+\.\d mm / \d+\.\d\d°", text), text
     best = re.search(
-        r"\*\*Hand error\*\*, sample (\d+) of 4, the best by refined hand error(.*): [\d.]+ mm / [\d.]+°", text
+        r"\*\*Hand error\*\*, sample (\d+) of 4 \(the best by refined hand error\): [\d.]+ mm / [\d.]+°", text
     )
     assert best, text
     view = app.solved.view
     raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1])) + 1
-    named = f"; by raw hand error at t = 0, sample {raw_best}" if raw_best != int(best.group(1)) else ""
-    assert best.group(2) == named  # the raw ranking named when it differs (issue 19)
+    named = f"by raw hand error at t = 0 the best is sample {raw_best}"
+    assert (named in text) == (raw_best != int(best.group(1)))  # the raw ranking named when it differs (issue 19)
     app.show_state(0)
-    assert not app.writer.refined_lines.visible  # the polish belongs to the final pose
+    assert not app.writer.view.refined_lines.visible  # the polish belongs to the final pose
 
 
 def test_the_chart_plots_the_hand_error_in_millimetres_and_says_so(app):
@@ -127,10 +127,7 @@ def test_the_chart_plots_the_hand_error_in_millimetres_and_says_so(app):
 
 def test_the_prior_and_a_planar_checkpoint_are_handled(app, tiny_checkpoint):
     joints = app.draw_prior()
-    assert joints.shape == (K, app.solver.arm.num_joints + 1, 3) and app.writer.prior_lines is not None
-    assert app.panel.export_button.disabled
-    with pytest.raises(ValueError, match="planar"):
-        app.export(None)
+    assert joints.shape == (K, app.solver.arm.num_joints + 1, 3) and app.writer.view.prior_lines is not None
     assert not app.load_checkpoint(tiny_checkpoint)  # a planar model: this viewer draws a robot
     assert "Could not load" in app.panel.model_text.content and "planar" in app.panel.model_text.content
     assert app.solver.arm.kind == "chain"
@@ -144,7 +141,7 @@ def test_a_solve_is_reproducible_from_its_seed(app):
 
 
 def test_the_floor_grid_is_spaced_in_round_numbers_near_a_tenth_of_the_reach():
-    from ikdp_viz.chain_scene_writer import grid_cell
+    from ikdp_viz.robot_view import grid_cell
 
     assert [grid_cell(reach) for reach in (0.986, 1.0, 3.0, 0.3, 12.0)] == [0.1, 0.1, 0.5, 0.05, 2.0]
 
@@ -167,14 +164,16 @@ def test_a_pause_draws_the_state_in_full_again(app):
     while app.state < 2 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert app.playing and 0 < app.state < last
-    assert not any(node.visible for node in writer.ghosts)  # while it plays the skeletons stand in for the ghosts
-    assert writer.skeletons.visible and all(node.visible for node in writer.robot)
+    assert not any(node.visible for node in writer.view.ghosts)  # while it plays the skeletons stand in for the ghosts
+    assert writer.view.skeletons.visible and all(node.visible for node in writer.view.robot)
     app.toggle_play()  # pause
-    assert not app.playing and writer.skeletons.visible and all(node.visible for node in writer.ghosts)
-    positions, _ = mesh_poses(app.solver.arm, app.solved.view.pose_at(app.state, 0), writer.mesh_links,
-                              writer.mesh_offsets)  # fmt: skip
-    np.testing.assert_allclose(writer.ghosts[2].batched_positions[0], positions[2], atol=1e-5)  # at the paused state
-    assert len(writer.trail.points) == (app.state + 1) * K  # the whole trail up to the state
+    assert not app.playing and writer.view.skeletons.visible and all(node.visible for node in writer.view.ghosts)
+    positions, _ = mesh_poses(app.solver.arm, app.solved.view.pose_at(app.state, 0), writer.view.mesh_links,
+                              writer.view.mesh_offsets)  # fmt: skip
+    np.testing.assert_allclose(
+        writer.view.ghosts[2].batched_positions[0], positions[2], atol=1e-5
+    )  # at the paused state
+    assert len(writer.view.trail.points) == (app.state + 1) * K  # the whole trail up to the state
 
 
 def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
@@ -183,16 +182,101 @@ def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
 
 
 def test_the_followed_robot_stands_out_and_the_others_recede(app):
-    from ikdp_viz.chain_scene_writer import HIGHLIGHTED_ROBOT
+    from ikdp_viz.chain_kind import HIGHLIGHTED_ROBOT
 
     writer, view = app.writer, app.solved.view
     highlight, num_joints = app.highlight_index(), view.num_joints
     for state in (1, view.num_states - 1):  # early and late: the followed robot is the same strong blue
         app.show_state(state)
-        assert all(node.color == HIGHLIGHTED_ROBOT for node in writer.robot)
-    skeleton = writer.skeletons.colors.reshape(view.num_samples, num_joints, 2, 3)[:, 0, 0].astype(int)
+        assert all(node.color == HIGHLIGHTED_ROBOT for node in writer.view.robot)
+    skeleton = writer.view.skeletons.colors.reshape(view.num_samples, num_joints, 2, 3)[:, 0, 0].astype(int)
     others = np.delete(skeleton, highlight, axis=0)
     assert (others.min(axis=1) >= 150).all() and skeleton[highlight].sum() < others.sum(axis=1).min() - 200
     app.panel.show_trail.value = True
-    assert len(writer.trail.points) == app.state + 1  # the followed hand's path alone, one step per state
+    assert len(writer.view.trail.points) == app.state + 1  # the followed hand's path alone, one step per state
     app.panel.show_trail.value = False
+
+
+def test_a_robot_exports_its_denoising_as_a_gif_and_a_labelled_png(app, tmp_path):
+    """Deliver 3 (issue 25): Export was disabled for robots; the skeletons are drawn as the viewer's camera sees
+    them, the followed one in the viewer's blue."""
+    import imageio.v2 as imageio
+    from viz_helpers import read_png
+
+    assert not app.panel.export_button.disabled
+    gif, png = app.export(tmp_path)
+    frames = imageio.mimread(gif)
+    assert len(frames) > 2 and not np.array_equal(frames[0], frames[-1])
+    image = read_png(png.read_bytes())
+    blue = (image[..., 2] > 150) & (image[..., 0] < 120)  # the followed skeleton (the viewer's accent)
+    red = (image[..., 0] > 180) & (image[..., 1] < 80) & (image[..., 2] < 80)  # the target's cross
+    assert blue.sum() > 50 and red.sum() > 20
+    assert "mm" in gif.name or gif.name.startswith("ikdp_ddpm_K")
+
+
+def test_the_robots_meshes_skeletons_and_hand_are_drawn_from_the_same_state(app):
+    """Finding 9 (issue 25): at the last state the meshes and hand showed the returned (refined) pose while the
+    skeletons showed the sampler's last state: stray skeleton lines."""
+    from ikdp_viz.chain_scene import gizmo_pose
+
+    app.panel.refine.value = True
+    settle(app)
+    view, writer = app.solved.view, app.writer
+    assert not np.allclose(view.final_joint_values, view.joint_values[-1])  # the two differ for this model
+    for state in (view.num_states // 2, view.num_states - 1):
+        app.show_state(state)
+        highlight = app.highlight_index()
+        skeleton = writer.view.skeletons.points.reshape(view.num_samples, -1, 2, 3)[highlight]
+        hand, _ = gizmo_pose(app.solver.arm, view.joint_values[state, highlight])
+        assert np.allclose(writer.view.hand.position, hand, atol=1e-5)
+        assert np.allclose(skeleton[-1, 1], writer.view.hand.position, atol=1e-4)  # the skeleton ends at the hand
+
+
+def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
+    """Deliver 6 (issue 25): a robot's drag answered in 0.4-1.0 s with DDPM; a fast DPM-Solver++ solve is drawn
+    first, the readout naming it, and the DDPM solve replaces it."""
+    from viz_helpers import shipped_solver_or_skip
+
+    from ikdp_viz.messages import ShowSolve
+
+    with running_app(shipped_solver_or_skip("ikdp_panda"), animation_seconds=0.0) as app:
+        settle(app)
+        shown = []
+        original = app.writer._show_solve
+        app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
+        moved = np.concatenate([app.target[:3] + np.array([0.05, 0.0, 0.0]), app.target[3:]])
+        app.move_target(moved, from_gizmo=True, dragging=True)
+        settle(app)
+        kinds = [(solved.request.sampler, solved.preview_of) for solved in shown]
+        assert kinds == [("dpmpp2m", "ddpm"), ("ddpm", None)]  # the preview first, then the full solve
+        assert app.solved.request.sampler == "ddpm" and "Fast preview" not in app.panel.readout_text.content
+        app.writer.post(ShowSolve(shown[0], newest=True))
+        app.writer.flush()
+        assert "**Fast preview** (dpmpp2m, 5 steps) while the ddpm solve runs" in app.panel.readout_text.content
+        before = len(shown)
+        app.move_target(moved + np.array([0.02, 0, 0, 0, 0, 0, 0]))  # a move made in one go animates: no preview
+        settle(app)
+        assert [solved.preview_of for solved in shown[before:]] == [None]
+
+
+def test_a_robot_compares_two_samplers_from_the_same_noise(app):
+    """Deliver 3 (issue 25): "compare with" drew planar arms only; a robot gets the second sampler's skeletons
+    beside it, the chart its curve, and one camera over both."""
+    from ikdp_viz.camera import camera_fit_3d
+
+    alone = np.asarray(app.server.initial_camera.position).copy()
+    assert app.panel.learn.compare.visible
+    app.panel.learn.compare.value = "dpmpp2m"
+    settle(app)
+    compare, view = app.solved.compare, app.solved.view
+    assert compare is not None and compare.num_samples == view.num_samples
+    nodes = app.writer.stage.compare
+    assert nodes.shown and len(nodes.nodes["skeletons"].points) == view.num_samples * compare.num_joints
+    assert len(app.panel.plot.data) == 5  # t, median, highlighted, now, and the compared sampler
+    both = np.asarray(app.server.initial_camera.position)
+    assert not np.allclose(both, alone)  # framed over both
+    app.panel.learn.compare.value = "off"
+    settle(app)
+    assert not nodes.shown
+    center, reach = app.writer.view.center, app.writer.view.reach
+    assert np.allclose(app.server.initial_camera.position, camera_fit_3d(center, reach)[0])

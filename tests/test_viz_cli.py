@@ -195,3 +195,10 @@ def test_without_sampler_flags_planar_and_robot_models_open_on_ddpm_the_setting_
             apply_settings(app, VizConfig(samples=2))
             settle(app)
             assert (app.solved.request.sampler, app.solved.request.steps) == expected
+
+
+def test_the_readme_tells_a_cpu_only_machine_where_torch_comes_from():
+    """Finding 13 (issue 25): the pin alone lets pip fetch a CUDA build on Linux; PyTorch's CPU wheel index does not."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert "pip install torch --index-url https://download.pytorch.org/whl/cpu" in readme
+    assert "`torch==2.13.0` is the version CI installs" in readme

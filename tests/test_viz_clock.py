@@ -7,8 +7,8 @@ import pytest
 
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
 from ikdp_viz.clock import clock_note, noise_levels, state_offsets
+from ikdp_viz.messages import Animation
 from ikdp_viz.scene import state_labels
-from ikdp_viz.scene_writer import Animation
 
 
 @pytest.fixture

@@ -7,7 +7,8 @@ import pytest
 from viz_helpers import running_app, settle
 
 import ikdp
-from ikdp_viz.compare import compare_curve, offset
+from ikdp_viz.compare import offset
+from ikdp_viz.scene import compare_curve
 
 
 @pytest.fixture
@@ -29,7 +30,7 @@ def test_the_second_sampler_starts_from_the_same_noise_and_leaves_the_first_unch
     assert np.allclose(compare.joints[0], view.joints[0])  # x_T: the very same noise
     assert not np.allclose(compare.joints[-1], view.joints[-1])  # then each sampler its own way
     # drawn to the left, at the state nearest the main one's diffusion time
-    nodes = app.writer.compare.nodes
+    nodes = app.writer.stage.compare.nodes
     reach = app.solver.reach[1]
     app.panel.timestep.value = 6
     shown = int(np.argmin(np.abs(compare.labels - 6)))
@@ -45,7 +46,7 @@ def test_the_second_sampler_starts_from_the_same_noise_and_leaves_the_first_unch
     # off again: the view, the extra series and the wide camera go
     app.panel.learn.compare.value = "off"
     settle(app)
-    assert app.solved.compare is None and not app.writer.compare.shown
+    assert app.solved.compare is None and not app.writer.stage.compare.shown
     assert len(app.panel.plot.series) == len(app.panel.plot.data) == 4
     assert app.server.initial_camera.position[0] == pytest.approx(0.0)
 
@@ -54,4 +55,4 @@ def test_comparing_a_sampler_with_itself_is_no_comparison(app):
     app.panel.sampler.value = "ddim"
     app.panel.learn.compare.value = "ddim"
     settle(app)
-    assert app.solved.compare is None and not app.writer.compare.shown
+    assert app.solved.compare is None and not app.writer.stage.compare.shown

@@ -211,14 +211,14 @@ def test_headings_come_back_from_joint_positions_and_states_map_to_the_denoisers
 def test_toggling_the_view_draws_its_nodes_and_the_slider_moves_the_samples(two_link_solver):
     with running_app(two_link_solver, animation_seconds=0.0, target=(1.2, 0.5)) as app:
         settle(app)
-        nodes, controls = app.writer.joint_space, app.panel.joint_space
+        nodes, controls = app.writer.stage.joint_space, app.panel.joint_space
         assert not nodes.shown and controls.first.disabled  # off by default; N = 2 has no joints to choose
         controls.show.value = True
         assert nodes.shown
         count, num_samples = int(controls.grid.value), int(app.panel.samples.value)
         assert nodes.arrows.points.shape == (3 * count * count, 2, 3)
         assert nodes.samples.points.shape == (num_samples, 3)
-        assert np.array_equal(nodes.samples.colors, app.writer._dot_colors[app.state])  # as "all samples" colours arms
+        assert np.array_equal(nodes.samples.colors, app.writer.frame.palette.dots)  # the frame's own dot colours
         assert nodes.solutions.points.shape == (4, 2, 3)  # two crosses: elbow up and elbow down
         final_samples, final_arrows = nodes.samples.points.copy(), nodes.arrows.points.copy()
         assert nodes.last_field.timestep == 0
@@ -226,6 +226,8 @@ def test_toggling_the_view_draws_its_nodes_and_the_slider_moves_the_samples(two_
         assert nodes.last_field.timestep == 39  # the denoiser's call on the state at t = 40
         assert not np.allclose(nodes.samples.points, final_samples)
         assert not np.allclose(nodes.arrows.points, final_arrows)
+        app.panel.timestep.value = 70  # finding 6 (issue 25): the dots were faint on the light square near t = T
+        assert (nodes.samples.colors.min(axis=-1) <= 60).all()  # dark (or the deep blue) at every step, not FAINT
         app.move_target((0.0, 0.0))  # the base: a curve of solutions
         settle(app)
         assert len(nodes.solutions.points) > 64
@@ -237,13 +239,22 @@ def test_for_more_links_two_chosen_joints_are_shown_against_the_final_samples(ti
     solver = ikdp.load(tiny_checkpoint)  # N = 3
     with running_app(solver, animation_seconds=0.0) as app:
         settle(app)
-        nodes, controls = app.writer.joint_space, app.panel.joint_space
+        nodes, controls = app.writer.stage.joint_space, app.panel.joint_space
         controls.show.value = True
         assert controls.first.options == ("θ1", "θ2", "θ3") and not controls.first.disabled
         controls.second.value = "θ3"
         assert controls.joints() == (0, 2)
         view = app.solved.view
         assert nodes.solutions.points.shape == (2 * view.num_samples, 2, 3)  # a cross on each final sample
+        # finding 6 (issue 25): the crosses stay inside the square, which stands clear of the ground grid; they are
+        # not the target's red, the legend says what they are, and each axis ends in -π / π
+        (cx, cy), half = nodes.square.centre, nodes.square.side / 2
+        points = nodes.solutions.points
+        assert (np.abs(points[..., 0] - cx) <= half + 1e-6).all() and (np.abs(points[..., 1] - cy) <= half + 1e-6).all()
+        assert cx - half > app.writer.view.grid_half_width
+        assert not (nodes.solutions.colors == (220, 25, 25)).all(axis=-1).any()
+        assert "joint space: the final samples" in app.panel.learn.legend.content
+        assert {label.text for label in nodes.labels} >= {"−π", "π"}
         app.panel.timestep.value = 5
         headings = link_headings(view.joints[app.state])
         field = nodes.last_field

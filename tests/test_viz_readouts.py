@@ -20,7 +20,7 @@ def test_solve_text_reads_the_shown_step_and_the_end_for_the_highlighted_sample(
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))
     text = solve_text(view, 1, 0, sampler="ddpm", seed=7, refine_steps=0, solve_seconds=0.0314)
     assert "**Step** 1 of 2 (t = 1)" in text
-    assert "sample 1 of 2, the best by tip error at t = 0: 1.4142 now, 0.0000 at t = 0" in text  # counted from 1
+    assert "sample 1 of 2 (the best by tip error at t = 0): 1.4142 now, 0.0000 at t = 0" in text  # counted from 1
     assert "median of K = 2: 1.4142 now, 0.7071 at t = 0" in text
     assert "**Solve** 31.4 ms (ddpm, 2 steps, seed 7)" in text and "refined" not in text
     ddim = solve_text(view, 2, 1, sampler="ddim", seed=0, refine_steps=0, solve_seconds=0.01, error="boom")
@@ -28,17 +28,31 @@ def test_solve_text_reads_the_shown_step_and_the_end_for_the_highlighted_sample(
     assert "sample 2 of 2:" in ddim  # not the best: no ranking note
 
 
-def test_with_refinement_the_best_says_it_ranks_refined_errors_and_names_the_best_raw_sample():
+def test_with_refinement_the_best_says_it_ranks_refined_errors_and_names_the_best_raw_sample_apart():
+    """Finding 7 (issue 25): "sample 5 ..., by raw tip error at t = 0, sample 11: 0.0167 now" gave sample 5's
+    numbers after sample 11's name; the numbers now follow their own sample, the raw best has a line of its own."""
     import dataclasses
 
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # raw tip errors at t = 0: 0 and 0.7071
     refined = dataclasses.replace(view, refined=True, final_tip_error=np.array([0.5, 0.0]))  # sample 2 polishes best
     text = solve_text(refined, 2, refined.best_sample(), sampler="ddpm", seed=0, refine_steps=5, solve_seconds=0.0)
-    assert "sample 2 of 2, the best by refined tip error; by raw tip error at t = 0, sample 1: " in text
+    assert "sample 2 of 2 (the best by refined tip error): 1.4142 now, 1.4142 at t = 0" in text
+    assert "  \nby raw tip error at t = 0 the best is sample 1  \n" in text
+    assert "sample 1:" not in text
     same = dataclasses.replace(view, refined=True, final_tip_error=np.array([0.0, 0.5]))  # both rank sample 1 first
-    assert "sample 1 of 2, the best by refined tip error: " in solve_text(
+    assert "sample 1 of 2 (the best by refined tip error): " in solve_text(
         same, 2, 0, sampler="ddpm", seed=0, refine_steps=5, solve_seconds=0.0
     )
+
+
+def test_the_readout_says_why_the_highlighted_sample_is_the_one_followed():
+    """Finding 8 (issue 25): a sample number chosen (or left by follow mode) read like "best"."""
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # sample 1 is the best
+    options = dict(sampler="ddpm", seed=0, refine_steps=0, solve_seconds=0.0)
+    assert "sample 2 of 2 (chosen in the panel's highlight): " in solve_text(
+        view, 2, 1, reason="chosen in the panel's highlight", **options
+    )
+    assert "sample 1 of 2 (kept by follow mode" in solve_text(view, 2, 0, reason="kept by follow mode (x)", **options)
 
 
 def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():

@@ -1,0 +1,92 @@
+"""A robot's drag: time from a target change to the first new frame on screen (issue 25, deliver 6).
+
+    python -m benchmarks.viz_robot_drag                  # ikdp_panda, 30 moves, one torch thread
+    python -m benchmarks.viz_robot_drag --moves 5        # a smoke run
+
+The Panda viewer as a user meets it (K = 16, DDPM, all 100 steps), the solve on one CPU
+thread. Each move is a drag update (the gizmo's "update" phase, not animated) 3 cm from the
+last, made once the previous one is drawn; measured from the move's arrival to the end of the
+`server.atomic()` block of the first solve drawn for it (`app.latencies`: a fast preview when
+the viewer makes one, else the full solve), and to the full solve. Works against an older
+checkout of the viewer too (it reads only VizApp's public `move_target` and `latencies`), so
+`--label` names the run and the table goes to benchmarks/results/viz_robot_drag.json beside
+the runs already there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import viser
+
+import ikdp
+from ikdp.evaluation.machine import cpu_model
+from ikdp.shipped import shipped_checkpoint
+from ikdp_viz.app import VizApp
+
+RESULTS = Path(__file__).resolve().parent / "results" / "viz_robot_drag.json"
+
+
+def measure(moves: int, *, previews: bool | None) -> dict:
+    """Per move: ms to the first frame drawn and to the full solve drawn."""
+    torch.set_num_threads(1)
+    solver = ikdp.load(shipped_checkpoint("ikdp_panda"))
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    options = {} if previews is None else {"previews": previews}
+    app = VizApp(server, solver, animation_seconds=0.0, **options)
+    try:
+        assert app.wait_until_still(120), "the first solve did not finish"
+        start = np.array(app.target, dtype=np.float64)
+        first, full = [], []
+        for index in range(moves):
+            target = start.copy()
+            target[:3] += 0.03 * np.array([np.cos(index), np.sin(index), 0.0])  # 3 cm around the first target
+            arrival = time.perf_counter()
+            app.move_target(target, arrival=arrival, from_gizmo=True, dragging=True)
+            assert app.wait_until_still(120), "a solve did not finish"
+            drawn = sorted(when for came, when, _ in app.latencies if came == arrival)
+            first.append(1000 * (drawn[0] - arrival))
+            full.append(1000 * (drawn[-1] - arrival))
+        return {"first_frame_ms": first, "full_solve_ms": full}
+    finally:
+        app.close()
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
+
+
+def summary(values: list[float]) -> dict[str, float]:
+    array = np.asarray(values)
+    return {"median": float(np.median(array)), "p95": float(np.percentile(array, 95)), "max": float(array.max())}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--moves", type=int, default=30)
+    parser.add_argument("--label", default="this checkout")
+    parser.add_argument("--no-previews", action="store_true", help="the full solve alone (this checkout's switch)")
+    args = parser.parse_args()
+    result = measure(args.moves, previews=False if args.no_previews else None)
+    row = {name: summary(values) for name, values in result.items()}
+    print(f"{args.label}: Panda drag, K = 16, DDPM-100, one torch thread, {args.moves} moves ({cpu_model()})")
+    print("| | median ms | p95 ms | max ms |")
+    print("|---|---|---|---|")
+    for name, stats in row.items():
+        print(f"| {name} | {stats['median']:.0f} | {stats['p95']:.0f} | {stats['max']:.0f} |")
+    runs = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    runs[args.label] = {**row, "moves": args.moves, "cpu": cpu_model(), "python": platform.python_version(),
+                        "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(runs, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,49 @@
+"""The Constraints folder's readout after a solve (markdown), from plain values: no viser here.
+
+What the target asks, how many samples meet the constraints and from which step the kept one
+does, follow mode's jumps, and, in words, why nothing reaches or meets (findings 4, 5, 16):
+a lock clamped or wrapped, no sample meeting the constraints, no sample reaching the target.
+"""
+
+from __future__ import annotations
+
+from ikdp_viz.constraint_scene import first_holding_state, holds
+
+
+def readout_text(solved, choice: int, jump: float | None, largest_jump: float, lock_notes: list[str], *,
+                 reaches: bool) -> str:  # fmt: skip
+    """The readout for `solved` with sample `choice` kept; `reaches`: some returned pose reaches the target."""
+    lines = []
+    measure = getattr(solved.view, "rotation_measure", "rotation")
+    if measure == "none":
+        lines.append("target: **position only**, any hand rotation")
+    elif measure != "rotation":
+        lines.append(f"target: the hand's **{measure} free**, any turn about it")
+    lines += [f"lock: {note}" for note in lock_notes]
+    names = {item.name for item in solved.request.constraints}
+    if solved.state_violation is not None:
+        count = len(solved.state_violation[-1])
+        met = int(holds(solved.state_violation[-1]).sum())
+        first = first_holding_state(solved.state_violation[:, choice])
+        states = len(solved.state_violation) - 1
+        held = "never" if first is None else f"from state {first} of {states} (t = {solved.view.labels[first]})"
+        lines.append(f"constraints met by {met} of {count} raw samples")
+        lines.append(f"sample {choice + 1}: holds {held}")
+        if met == 0:
+            why = []
+            if "obstacles" in names:
+                why.append("every one touches an obstacle: move it, or make it smaller")
+            if "locked_joints" in names:
+                why.append("a locked joint may leave no way around it")
+            lines.append(f"**no sample meets the constraints**: {'; '.join(why) or 'try more samples (K)'}")
+    if not reaches and "locked_joints" in names:
+        lines.append("**no sample reaches the target with these locks**: the locked joints keep the hand from it; "
+                     "unlock one or change its value")  # fmt: skip
+    if solved.pull_missed is not None:
+        lines.append(
+            f"**stay near: every pulled sample missed the target** (best {solved.pull_missed:.3g} away); "
+            "shown: the same noise solved without the pull"
+        )
+    if jump is not None:
+        lines.append(f"joint jump {jump:.3f} rad, largest so far **{largest_jump:.3f} rad**")
+    return "  \n".join(lines) if lines else "No constraint."

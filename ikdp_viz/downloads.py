@@ -1,0 +1,138 @@
+"""What a tab can take away: the solve on screen as a GIF and a PNG (export.py), or as one HTML page (record.py).
+
+Both read the solve on screen and the view settings on the drawing loop's thread (one
+snapshot, as a frame is built), then render on the thread of the tab's click.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import viser
+
+from ikdp_viz.messages import Call
+from ikdp_viz.record import file_name
+
+PICTURE_WORDS = ("trail", "highlighted", "constraints", "skeletons:")  # the legend's entries a flat picture draws too
+
+
+def export_picture(solved, settings, solver):
+    """The export.Drawing of `solved` as `settings` show it: the arm kind's flat picture, colours and clock."""
+    from ikdp_viz.arm_kinds import arm_kind
+    from ikdp_viz.clock import solve_noise_levels, state_offsets
+    from ikdp_viz.export import drawing
+    from ikdp_viz.frame import highlighted_sample
+    from ikdp_viz.legend import Entry, Swatch
+    from ikdp_viz.style import TARGET_RED
+
+    kind, view, request = arm_kind(solver), solved.view, solved.request
+    highlight = highlighted_sample(settings.highlight, solved)
+    constraint_colors = settings.color_by_constraint and solved.state_violation is not None
+    palette = kind.palette(solved, highlight, settings.trail_of, constraint_colors)
+    polylines, target, circle, _ = kind.flat_picture(solved)
+    sigmas = solve_noise_levels(solver, view)
+    legend = [
+        entry
+        for entry in kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
+        if entry.text.split()[0] in PICTURE_WORDS
+    ]
+    legend.append(Entry(Swatch(TARGET_RED, "cross"), "target"))  # fmt: skip
+    title = (f"IKDP {request.sampler}, K = {view.num_samples}, seed {request.seed}: "
+             f"{kind.target_words(request.target)}")  # fmt: skip
+    return drawing(
+        solved, polylines, target, circle=circle, highlight=highlight, trail_of=settings.trail_of,
+        arms=kind.arm_colors(palette), offsets=state_offsets(sigmas, settings.clock, settings.seconds), title=title,
+        legend=legend,
+    )  # fmt: skip
+
+
+class Downloads:
+    """The Export and Share buttons of one viewer."""
+
+    def __init__(self, writer, panel):
+        self.writer, self.panel = writer, panel
+        self._export_lock = threading.Lock()  # one export renders at a time
+        self._export_notes: dict[int, viser.NotificationHandle] = {}  # client id -> its export's notification
+
+    def snapshot(self, what: str):
+        """(solve on screen, view settings, solver, frame) read on the drawing loop's thread, or ValueError."""
+        done: list = []
+        self.writer.post(Call(lambda writer: done.append((writer.solved, writer.settings(), writer.solver,
+                                                          writer.frame))))  # fmt: skip
+        self.writer.flush()
+        solved, settings, solver, frame = done[0]  # one snapshot: the four belong together
+        if solved is None:
+            raise ValueError(f"{what}: nothing solved yet")
+        return solved, settings, solver, frame
+
+    def export(self, folder: Path, progress=None) -> tuple[Path, Path]:
+        """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`, for
+        either arm, with the viewer's colours, clock and highlighted sample (finding 12; deliver 3).
+
+        `progress(done, total)` is called after each GIF frame (export.write_gif).
+        """
+        from ikdp_viz.export import write_gif, write_trail_png
+
+        solved, settings, solver, frame = self.snapshot("export")
+        picture = export_picture(solved, settings, solver)
+        stem = file_name(solved).removesuffix(".html")
+        gif = write_gif(picture, Path(folder) / f"{stem}.gif", seconds=settings.seconds, progress=progress)
+        png = write_trail_png(picture, Path(folder) / f"{stem}_trail.png")
+        return gif, png
+
+    def on_export(self, event: viser.GuiEvent) -> None:
+        """Export into a temporary folder and save both files in the downloads of the tab that asked.
+
+        The tab sees one notification per export, replacing its last one: the GIF's frames as they
+        render, then the two names. The files are saved at once (viser's `save_immediately`): without
+        it viser shows a link per file to click, and the links pile up (issue 19).
+        """
+        import tempfile
+
+        client = event.client
+        if client is None:
+            return
+        previous = self._export_notes.pop(client.client_id, None)
+        if previous is not None:  # popped, so never removed twice
+            previous.remove()
+        note = client.add_notification("Export", "starting", loading=True, with_close_button=False)
+        self._export_notes[client.client_id] = note
+        if not self._export_lock.acquire(blocking=False):
+            note.title, note.body, note.loading = "Export", "another export is rendering; try again", False
+            note.with_close_button, note.auto_close_seconds = True, 5.0
+            return
+        try:
+            progress = lambda done, total: setattr(note, "body", f"rendering the GIF: frame {done} of {total}")
+            with tempfile.TemporaryDirectory() as folder:
+                paths = self.export(Path(folder), progress=progress)
+                note.body = "sending the files"
+                for path in paths:
+                    client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
+            # a zero-width space after each "_" lets the long names wrap instead of being cut off with "..."
+            names = [path.name.replace("_", "_\u200b") for path in paths]
+            note.title, note.body = "Exported to your downloads", " and ".join(names)
+        except ValueError as error:
+            note.title, note.body, note.color = "Export failed", str(error), "red"
+        finally:
+            self._export_lock.release()
+        note.loading, note.with_close_button, note.auto_close_seconds = False, True, 8.0
+
+    def share(self) -> tuple[str, str]:
+        """The solve on screen as one self-contained HTML page (record.py) with the panel's view: (file name, page)."""
+        from ikdp_viz.record import record_html
+
+        solved, settings, _, _ = self.snapshot("share")
+        return file_name(solved), record_html(solved, settings)
+
+    def on_share(self, event: viser.GuiEvent) -> None:
+        """Record the solve on screen and send the page to the tab that asked; the button says while it works."""
+        if event.client is None or self.writer.solved is None:
+            return
+        button = self.panel.learn.share
+        label, button.label, button.disabled = button.label, "Recording the denoising...", True
+        try:
+            name, page = self.share()
+            event.client.send_file_download(name, page.encode("utf-8"), save_immediately=True)
+        finally:
+            button.label, button.disabled = label, False

@@ -1,0 +1,150 @@
+"""One picture as a plain value: the `Frame` the scene, the legend, the readouts and the chart are all written from.
+
+The drawing loop (scene_writer.py) takes one snapshot (the solve on screen, the state
+shown, the panel's view settings) and builds a `Frame` from it with `build_frame`; the arm
+view draws its nodes from the frame, and the panel's texts and chart are the frame's own.
+So the highlighted sample, the step, the colours and the words cannot disagree: they are
+computed once, here (issue 25). No viser here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ikdp_viz.clock import CLOCK_CHOICES
+from ikdp_viz.constraint_scene import holds, met_text
+from ikdp_viz.emphasis import TRAIL_CHOICES
+from ikdp_viz.legend import Entry
+from ikdp_viz.scene import compare_curve, error_curves
+
+HIGHLIGHT_CHOICES = "best"  # the highlight dropdown's first choice; the others are sample numbers from 1
+
+
+@dataclass(frozen=True)
+class ViewSettings:
+    """How a solve is shown: the panel's view settings (a recording's too), read once per frame."""
+
+    highlight: str = "best"  # the highlight dropdown: "best" or a sample's number from 1
+    trail_of: str = TRAIL_CHOICES[0]  # highlighted (the paper's figure) or all samples
+    show_trail: bool = True  # the trail up to the step shown
+    show_estimate: bool = False  # ghost x̂0
+    clock: str = CLOCK_CHOICES[0]  # spacing of the states in time: noise level or step
+    seconds: float = 4.0  # from t = T to 0
+    color_by_constraint: bool = True  # green / red by whether each sample's constraints hold
+    followed: bool = False  # follow mode chose the highlighted sample (the Constraints folder)
+    joint_space: bool = False  # the joint-space view is on (its colours join the legend)
+
+    @classmethod
+    def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False) -> ViewSettings:
+        return cls(
+            highlight=str(panel.highlight.value), trail_of=str(panel.learn.trail_of.value),
+            show_trail=bool(panel.show_trail.value), show_estimate=bool(panel.show_estimate.value),
+            clock=str(panel.learn.clock.value), seconds=float(panel.duration.value) or 4.0,
+            color_by_constraint=color_by_constraint, followed=followed,
+            joint_space=bool(panel.joint_space.show.value),
+        )  # fmt: skip
+
+
+def best_sample(solved) -> int:
+    """The sample "best" names: the smallest error at t = 0 among those meeting the constraints there (finding 4:
+    "best" highlighted a robot through an obstacle); of all samples when none meets them, or there are none."""
+    view, violation = solved.view, getattr(solved, "state_violation", None)
+    if violation is None or not holds(violation[-1]).any():
+        return view.best_sample()
+    return int(np.argmin(np.where(holds(violation[-1]), view.final_error, np.inf)))
+
+
+def highlighted_sample(choice: str, solved) -> int:
+    """The 0-based sample the highlight dropdown's `choice` names for `solved`: its best, or number - 1 (at most K)."""
+    if choice == HIGHLIGHT_CHOICES:
+        return best_sample(solved)
+    return min(int(choice), solved.view.num_samples) - 1
+
+
+def highlight_reason(settings: ViewSettings, highlight: int, solved) -> str:
+    """Why this sample is the one followed, for the readouts: best, kept by follow mode, or chosen in the panel."""
+    if settings.followed:
+        return "kept by follow mode (the nearest that reaches)"
+    violation = getattr(solved, "state_violation", None)
+    meeting = 0 if violation is None else int(holds(violation[-1]).sum())
+    best = "the best" if violation is None or meeting == 0 else f"the best of the {meeting} meeting the constraints"
+    if settings.highlight == HIGHLIGHT_CHOICES:
+        return best
+    also = "" if highlight != best_sample(solved) else f"; it is also {best}"
+    return f"chosen in the panel's highlight{also}"
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Everything one picture shows: a state of one solve, the sample followed, the colours and the words."""
+
+    solved: object  # solving.Solved on screen
+    state: int  # 0 (pure noise) .. S (final)
+    highlight: int  # the sample followed, 0-based
+    settings: ViewSettings
+    palette: object  # the arm kind's colours of this solve and highlight (arm_kinds: PlanarPalette, ChainPalette)
+    light: bool  # a frame of a playing animation, not its last: the light scene (fewer trail states, no ghosts)
+    trail_states: int | None  # the most trail states shown; None: all up to the state
+    constraint_colors: bool  # the samples are coloured green / red by constraint
+    readout: str  # the Readouts folder's markdown
+    legend: tuple[Entry, ...]  # what each colour drawn means
+    chart: tuple[np.ndarray, ...]  # the chart's columns: t, median, highlighted, now (and a compared sampler's)
+    chart_compared: str | None  # the sampler of the chart's extra column, if any
+    step_label: str  # "step s of S (t = ...)", for a recording's label
+
+    @property
+    def view(self):
+        return self.solved.view
+
+    @property
+    def final(self) -> bool:
+        return self.state == self.view.num_states - 1
+
+
+def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, animating_to: int | None,
+                error: str | None = None) -> Frame:  # fmt: skip
+    """The frame of `state` of `solved` as `settings` show it; `animating_to` is the playing animation's last state
+    (None when still); `palettes` caches the kind's colours per (solve, highlight, settings)."""
+    view = solved.view
+    state = int(np.clip(state, 0, view.num_states - 1))
+    highlight = highlighted_sample(settings.highlight, solved)
+    constraint_colors = settings.color_by_constraint and solved.state_violation is not None
+    palette = palettes.get(kind, solved, highlight, settings.trail_of, constraint_colors)
+    light = animating_to is not None and state < animating_to
+    text = kind.solve_text(solved, state, highlight, highlight_reason(settings, highlight, solved), error)
+    if solved.preview_of is not None:  # say which is shown (deliver 6)
+        text = (f"**Fast preview** ({solved.request.sampler}, {view.num_states - 1} steps) while the "
+                f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
+    if solved.state_violation is not None:
+        text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
+    chart = error_curves(view, highlight, state, scale=kind.chart_scale)
+    compared = solved.request.compare_sampler if solved.compare is not None else None
+    if compared is not None:
+        chart = (*chart, compare_curve(view, solved.compare, highlight, scale=kind.chart_scale))
+    legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
+    last = view.num_states - 1
+    return Frame(
+        solved=solved, state=state, highlight=highlight, settings=settings, palette=palette, light=light,
+        trail_states=kind.light_trail_states(settings.trail_of) if light else None,
+        constraint_colors=constraint_colors, readout=text, legend=tuple(legend), chart=chart,
+        chart_compared=compared, step_label=f"step {state} of {last} (t = {int(view.labels[state])})",
+    )  # fmt: skip
+
+
+class Palettes:
+    """The arm kind's colours of the solve on screen, once per (solve, highlight, trail, constraint colours)."""
+
+    def __init__(self):
+        self._solved = None  # held, so that the key's solve is never another object at the same address
+        self._key: tuple | None = None
+        self._palette = None
+
+    def get(self, kind, solved, highlight: int, trail_of: str, constraint_colors: bool):
+        key = (kind.name, highlight, trail_of, constraint_colors)
+        if solved is not self._solved or key != self._key:
+            self._solved = solved
+            self._palette = kind.palette(solved, highlight, trail_of, constraint_colors)
+            self._key = key
+        return self._palette

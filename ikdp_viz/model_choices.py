@@ -1,0 +1,120 @@
+"""The Model dropdown's entries: the checkpoints in a folder that drive the kind of arm this viewer draws.
+
+Each file's kind of arm is read once per version (path, mtime, size): re-listing on every new
+tab costs a stat per file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import ikdp
+from ikdp.checkpoint import read_checkpoint
+from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.messages import Call, NewModel
+from ikdp_viz.session import initial_target
+
+
+def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
+    """Dropdown label -> path for every `.pt` in `folder`, plus `extra` (labelled by its path) if elsewhere."""
+    found = {path.name: path for path in sorted(Path(folder).glob("*.pt"))} if Path(folder).is_dir() else {}
+    if extra is not None and Path(extra).resolve() not in {path.resolve() for path in found.values()}:
+        found[str(extra)] = Path(extra)
+    return found
+
+
+def checkpoint_arm_kind(path: Path) -> str | None:
+    """The kind of arm ("planar", "chain") a checkpoint file's model drives; None if ikdp cannot read the file."""
+    try:
+        payload = read_checkpoint(path)
+    except ikdp.CheckpointError:
+        return None
+    arm = payload["model"].get("arm")  # absent or None: a planar arm described by its `lengths`
+    return str(arm.get("kind", "planar")) if isinstance(arm, dict) else "planar"
+
+
+class ModelChoices:
+    """Dropdown label -> checkpoint path, only the models of `solver`'s kind of arm; re-listed from `folder`."""
+
+    def __init__(self, paths: dict[str, Path], solver, folder: Path | None):
+        self.folder = folder
+        self._kinds: dict[tuple[Path, float, int], str | None] = {}  # (path, mtime, size) -> arm kind
+        self.paths = self.openable(paths, solver)
+
+    def label_of(self, solver) -> str:
+        """The entry of `solver`'s own checkpoint, added when the list lacks it."""
+        path = Path(solver.metadata.get("path", ""))
+        for label, candidate in self.paths.items():
+            if candidate == path or (candidate.exists() and path.exists() and candidate.resolve() == path.resolve()):
+                return label
+        label = str(path)
+        self.paths[label] = path
+        return label
+
+    def refresh(self, solver) -> bool:
+        """Re-list the folder (new models appear as they are trained); False when there is no folder."""
+        if self.folder is None:
+            return False
+        current = self.label_of(solver)
+        found = self.openable(list_checkpoints(self.folder), solver)
+        found.setdefault(current, self.paths[current])
+        self.paths = found
+        return True
+
+    def openable(self, paths: dict[str, Path], solver) -> dict[str, Path]:
+        """The entries of `paths` whose model drives `solver`'s kind of arm."""
+        wanted = arm_kind(solver).name
+        kept = {}
+        for label, path in paths.items():
+            try:
+                stat = Path(path).stat()
+            except OSError:
+                continue
+            key = (Path(path), stat.st_mtime, stat.st_size)
+            if key not in self._kinds:
+                self._kinds[key] = checkpoint_arm_kind(Path(path))
+            if self._kinds[key] == wanted:
+                kept[label] = path
+        return kept
+
+
+def switch_model(app, path: Path) -> bool:
+    """Load `path` into `app` (a VizApp): its panel, its scene for the arm, a solve of the old target pulled into the
+    new workspace. False, with the reason in the Model folder, when the file cannot be used or drives another kind
+    of arm."""
+    described = arm_kind(app.solver).model_text(app.solver)
+
+    def refused(reason: str) -> bool:
+        show_model_text(app, f"**Could not load** {reason}  \n\n" + described)
+        app.panel.checkpoint.value = app._current_checkpoint_label()  # the dropdown back on the open model
+        return False
+
+    try:
+        solver = ikdp.load(path, device=app.solver.device)
+    except (ikdp.CheckpointError, OSError, RuntimeError) as error:
+        return refused(str(error))
+    if arm_kind(solver) is not arm_kind(app.solver):  # the drawing loop draws one kind of arm
+        return refused(f"{path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
+                       f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}")  # fmt: skip
+    with app.session.lock:
+        previous = app.session.target
+        app.session.solver = solver
+        app.constraint_controls.rebuild(solver)
+        app.session.target = initial_target(solver, previous)
+        app.writer.post(NewModel(solver, app.session.target))
+        show_model_text(app, arm_kind(app.solver).model_text(app.solver))
+        app.panel.checkpoint.value = app._current_checkpoint_label()
+        app.panel.steps.max = solver.timesteps  # here too, not only on the loop's thread: show_steps reads it
+        app.sampling.show_steps()  # the new model's T, when its sampler takes all steps
+        # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
+        same_kind_of_target = np.shape(previous) == np.shape(app.session.target)
+        app.move_target(previous if same_kind_of_target else app.session.target)
+    return True
+
+
+def show_model_text(app, text: str) -> None:
+    """The Model folder's text, written by the drawing loop like every panel output; waits until it is."""
+    app.writer.post(Call(lambda writer: setattr(writer.panel.model_text, "content", text)))
+    app.writer.flush()

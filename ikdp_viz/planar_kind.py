@@ -1,0 +1,147 @@
+"""The planar arm's kind: its maths, texts, colours and legend for the viewer; its nodes are planar_view.py's.
+
+No viser here. `arm_kinds.arm_kind(solver)` picks this or chain_kind.py: the only place that
+branches on the kind of arm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ikdp_viz import readouts, scene
+from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, sample_tints
+from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
+from ikdp_viz.legend import Entry, Swatch
+from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, TIP_DARK, TIP_FAINT, fade_colors
+from ikdp_viz.style import ESTIMATE, PRIOR, TARGET_RED
+
+PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
+PLAYING_FOLLOWED_STATES = 12  # the same for the one sample followed (the default picture)
+JOINT_SPACE_DOT = (60, 60, 60)  # the joint-space view's dots of the other samples: dark at every step (finding 6)
+
+
+@dataclass(frozen=True)
+class PlanarPalette:
+    """The colours of one planar solve with one sample highlighted, every state at once."""
+
+    arms: np.ndarray  # (S+1, K, 3) uint8 each arm's colour at each state
+    trail: np.ndarray  # (S+1, K*N, 2, 3) uint8 each trail segment's colour
+    tips: np.ndarray  # (S+1, 3) uint8 the tips' colour at each state
+    dots: np.ndarray  # (K, 3) uint8 the joint-space dots: dark at every state, the highlighted one blue
+
+
+class PlanarKind:
+    """The paper's planar N-link arm: targets (2,) in its plane, an annulus for workspace."""
+
+    name = "planar"
+    default_sampler = ("ddpm", 20)  # the paper's sampler; the steps apply if the user picks one that skips
+    chart_error, chart_unit, chart_scale = "tip error", "bone lengths", 1.0  # the chart's y: view.tip_error * scale
+    holds_text = "constraints hold at the step shown (the others lighter)"
+    violates_text = "constraints fail at the step shown"
+
+    def configure_panel(self, panel) -> None:
+        """Every control applies to a planar arm as the panel builds it."""
+
+    def initial_target(self, solver, target=None) -> np.ndarray:
+        """(2,) `target` clamped into the solver's workspace; a point up and to the right when None."""
+        inner, outer = solver.reach
+        point = np.array(target if target is not None else (0.55 * outer, 0.3 * outer), dtype=np.float64)
+        return scene.clamp_to_workspace(point, inner, outer)[0]
+
+    def clamp(self, solver, point) -> tuple[np.ndarray, bool]:
+        """The nearest workspace point to `point` (a gizmo position's z is ignored), and whether it moved."""
+        return scene.clamp_to_workspace(point, *solver.reach)
+
+    def gizmo_target(self, solver, gizmo) -> np.ndarray:
+        """The target a dragged gizmo asks for: its (x, y)."""
+        return np.asarray(gizmo.position, dtype=np.float64)[:2]
+
+    def drawable(self, result, solver, target, partial=None) -> tuple[scene.SolveView, np.ndarray]:
+        """A solve's view and its trail (S+1, K*N, 2, 3); `partial` is for pose models (a planar target is a point)."""
+        view = scene.build_view(result, solver.lengths, target)
+        return view, scene.trail_points(view.joints)
+
+    def model_text(self, solver) -> str:
+        return readouts.model_text(solver.num_links, solver.lengths, solver.timesteps, solver.metadata)
+
+    def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
+        return readouts.target_text(target, clamped, solver.reach)
+
+    def target_words(self, target: np.ndarray) -> str:
+        """The target in a recording's label."""
+        return f"target x = {target[0]:+.3f}, y = {target[1]:+.3f}"
+
+    def typed_numbers(self, inputs, arm) -> tuple[float, ...]:
+        """The numbers typed in the panel's Target folder."""
+        return tuple(inputs.xy.value)
+
+    def write_typed_fields(self, inputs, target: np.ndarray) -> None:
+        """The typed-target fields show the target solved (so a small change is one edit away)."""
+        inputs.show_for("planar", 2)
+        inputs.xy.value = tuple(round(float(value), 3) for value in target[:2])
+
+    def flat_picture(self, solved) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:
+        """What the exported files draw: (polylines (S+1, K, N+1, 2), target (2,), workspace radius, arm colours
+        chosen from a palette by `arm_colors`): the plane itself."""
+        view = solved.view
+        return view.joints, view.target, float(np.sum(view.lengths)), None
+
+    def arm_colors(self, palette) -> np.ndarray:
+        """(S+1, K, 3) each sample's line colour at each state, from this kind's palette."""
+        return palette.arms
+
+    def light_trail_states(self, trail_of: str) -> int:
+        """How many trail states a playing frame shows (docs/VIZ.md: software WebGL pays for every segment)."""
+        return PLAYING_FOLLOWED_STATES if follows_one(trail_of) else PLAYING_TRAIL_STATES
+
+    def palette(self, solved, highlight: int, trail_of: str, constraint_colors: bool) -> PlanarPalette:
+        view = solved.view
+        arms, ramp = emphasis_colors(view.num_states, view.num_samples, highlight, trail_of)
+        if constraint_colors:  # every arm green where its constraints hold at that state, red where not
+            arms = sample_tints(solved.state_violation, highlight)
+        dots = np.broadcast_to(np.array(JOINT_SPACE_DOT, np.uint8), (view.num_samples, 3)).copy()
+        dots[highlight] = ACCENT_DARK
+        return PlanarPalette(
+            arms=arms, trail=scene.trail_colors(ramp, view.num_links),
+            tips=fade_colors(view.num_states, TIP_FAINT, TIP_DARK), dots=dots,
+        )  # fmt: skip
+
+    def solve_text(self, solved, state: int, highlight: int, reason: str, error: str | None) -> str:
+        request = solved.request
+        return readouts.solve_text(
+            solved.view, state, highlight, sampler=request.sampler, seed=request.seed,
+            refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, error=error, reason=reason,
+        )  # fmt: skip
+
+    def legend_entries(self, settings, *, constraint_colors: bool, view, solved) -> list[Entry]:
+        """What each colour of the planar scene means now, for the panel's legend (and a recording's)."""
+        if follows_one(settings.trail_of):
+            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0")
+            others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)")
+        else:
+            trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0")
+            others = Entry(Swatch(DARK, faint=FAINT), "the other samples")
+        highlighted = Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown")
+        entries = [trail]
+        if constraint_colors:  # the arms are green or red then, the highlighted one in full (finding 10)
+            entries += [
+                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.holds_text),
+                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), self.violates_text),
+            ]
+        else:
+            entries += [highlighted, others]
+        entries.append(Entry(Swatch(TIP_DARK, faint=TIP_FAINT), "tips: t = T → 0"))
+        entries += [
+            Entry(Swatch(ESTIMATE), "x̂0 (show x̂0): the denoiser's guess of the final pose"),
+            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
+        ]
+        entries += [Entry(Swatch(PRIOR), "poses drawn from the prior"), Entry(Swatch(TARGET_RED, "cross"), "target")]
+        if settings.joint_space and view is not None:  # the square's marks (finding 6: its ✕ read as "target")
+            if view.num_links == 2:
+                entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's exact solutions"))
+            else:
+                entries.append(Entry(Swatch(JOINT_SPACE_DOT, "cross"), "joint space: the final samples"))
+            entries.append(Entry(Swatch(JOINT_SPACE_DOT, "dot"), "joint space: the samples at the step shown"))
+        return entries

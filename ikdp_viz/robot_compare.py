@@ -1,0 +1,83 @@
+"""Same noise, two samplers, for a robot: the second sampler's skeletons beside the robot (issue 25, deliver 3).
+
+The planar comparison (compare.py) draws a second workspace to the left; a robot's is its K
+skeletons at the state nearest the same diffusion time, shifted along -y by the width of the
+reach ball and a gap, coloured as the main skeletons, with the target's frame and a label
+naming each side. The drawing loop frames the camera over both (`camera`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikdp_viz.camera import camera_fit_3d
+from ikdp_viz.chain_scene import skeleton_segments
+from ikdp_viz.compare import sampler_title
+from ikdp_viz.robot_view import SKELETON_PIXELS
+from ikdp_viz.scene import nearest_state
+
+SHIFT = 2.4  # the second robot's base from the first, in reach radii along -y
+
+
+class RobotCompareNodes:
+    """The second sampler's skeletons, target and labels beside a robot; removed when the comparison goes."""
+
+    def __init__(self, server):
+        self.server = server
+        self.nodes: dict = {}
+        self.shift: np.ndarray | None = None  # (3,) while shown
+
+    @property
+    def shown(self) -> bool:
+        return bool(self.nodes)
+
+    def extent(self):
+        return None  # a 3-D view: `camera` frames it
+
+    def camera(self, center: np.ndarray, reach: float):
+        """A camera over the robot and its comparison together: the robot's own look, from farther away."""
+        middle = center + self.shift / 2
+        return camera_fit_3d(middle, 1.6 * reach)
+
+    def draw(self, solver, frame, *, sizes=None) -> None:
+        solved, compare = frame.solved, getattr(frame.solved, "compare", None)
+        if compare is None:
+            self.remove()
+            return
+        reach = float(solver.arm.reach[1])
+        if not self.shown:
+            self._build(solved, reach)
+        shown = nearest_state(compare.labels, float(solved.view.labels[frame.state]))
+        lines = frame.palette.lines[min(frame.state, len(frame.palette.lines) - 1)]  # (K, 3) the main colours
+        segments = skeleton_segments(compare.points[shown]) + self.shift
+        self.nodes["skeletons"].points = segments.astype(np.float32)
+        per_joint = np.repeat(lines, compare.num_joints, axis=0)[:, None]
+        self.nodes["skeletons"].colors = np.broadcast_to(per_joint, (len(segments), 2, 3))
+        request = solved.request
+        self.nodes["title"].text = sampler_title(request.compare_sampler, compare.num_states - 1)
+        self.nodes["main_title"].text = sampler_title(request.sampler, solved.view.num_states - 1) + ": same x_T"
+
+    def _build(self, solved, reach: float) -> None:
+        scene = self.server.scene
+        self.shift = np.array([0.0, -SHIFT * reach, 0.0])
+        target = np.asarray(solved.view.target, dtype=np.float64)
+        wxyz = target[3:7] if len(target) == 7 else (1.0, 0.0, 0.0, 0.0)
+        base = np.asarray(solved.view.points[0, 0, 0], dtype=np.float64)
+        self.nodes["skeletons"] = scene.add_line_segments(
+            "/compare/skeletons", np.zeros((1, 2, 3)), colors=(0, 0, 0), thickness=SKELETON_PIXELS,
+            thickness_units="screen",
+        )  # fmt: skip
+        self.nodes["target"] = scene.add_frame(
+            "/compare/target", axes_length=0.1 * reach, axes_radius=0.006 * reach,
+            position=tuple(target[:3] + self.shift), wxyz=tuple(float(value) for value in wxyz),
+        )  # fmt: skip
+        top = base + (0.0, 0.0, 1.2 * reach)
+        self.nodes["title"] = scene.add_label("/compare/title", "", position=tuple(top + self.shift),
+                                              anchor="bottom-center")  # fmt: skip
+        self.nodes["main_title"] = scene.add_label("/compare/main_title", "", position=tuple(top),
+                                                   anchor="bottom-center")  # fmt: skip
+
+    def remove(self) -> None:
+        for node in self.nodes.values():
+            node.remove()
+        self.nodes, self.shift = {}, None

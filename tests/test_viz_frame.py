@@ -1,0 +1,56 @@
+"""One Frame of truth (issue 25): the readouts, the chart and the legend of a picture come from the same snapshot
+as its colours, so they name the same sample and the same colours. Plain values: no viser, no server."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+from viz_helpers import hand_made_result
+
+from ikdp_viz.chain_kind import ChainKind
+from ikdp_viz.constraint_scene import HOLDS, VIOLATES
+from ikdp_viz.frame import Palettes, ViewSettings, build_frame
+from ikdp_viz.planar_kind import PlanarKind
+from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK, TIP_FAINT, build_view, trail_points
+
+
+def planar_solve(violation=None):
+    view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # sample 1 lands on the target
+    request = SimpleNamespace(sampler="ddpm", seed=0, refine_steps=0, compare_sampler=None, constraints=())
+    return SimpleNamespace(request=request, view=view, trail_points=trail_points(view.joints), solve_seconds=0.01,
+                           compare=None, state_violation=violation, preview_of=None)  # fmt: skip
+
+
+def frame_of(solved, state, **settings):
+    return build_frame(PlanarKind(), solved, state, ViewSettings(**settings), palettes=Palettes(), animating_to=None)
+
+
+def test_the_readout_and_the_chart_follow_the_sample_the_scene_highlights():
+    solved = planar_solve()
+    for choice, highlight in (("best", 0), ("2", 1)):
+        frame = frame_of(solved, 1, highlight=choice)
+        assert frame.highlight == highlight
+        assert f"sample {highlight + 1} of 2" in frame.readout
+        t, _, followed, now = frame.chart
+        assert np.allclose(followed, np.log10(np.maximum(solved.view.tip_error[::-1, highlight], 1e-6)))
+        assert np.isnan(now).sum() == len(now) - 1  # one dot: the state shown
+        assert (frame.palette.arms[:, highlight] == ACCENT_DARK).all()  # the scene's blue is that sample too
+    assert "(chosen in the panel's highlight)" in frame_of(solved, 1, highlight="2").readout
+
+
+def test_the_legend_names_the_colours_the_frame_draws():
+    """Finding 10 (issue 25): green meant both refined and constraints-hold; under constraint colours the legend
+    still showed the highlighted arm blue; the tips' swatch was their final orange only; 3-D listed a red cross."""
+    solved = planar_solve(violation=np.array([[0.5, 0.5], [0.5, 0.0], [0.0, 0.3]]))  # (S+1, K)
+    plain = frame_of(solved, 2, color_by_constraint=False)
+    colored = frame_of(solved, 2)
+    blue = lambda legend: any(e.swatch.color == ACCENT_DARK and e.text.startswith("highlighted") for e in legend)  # noqa
+    assert blue(plain.legend) and not blue(colored.legend)
+    assert {HOLDS, VIOLATES} <= {entry.swatch.color for entry in colored.legend}
+    assert tuple(colored.palette.arms[2, 0]) == HOLDS  # the highlighted arm is green where the legend says green
+    assert REFINED not in (HOLDS, VIOLATES)
+    tips = next(entry for entry in plain.legend if entry.text.startswith("tips"))
+    assert (tips.swatch.faint, tips.swatch.color) == (TIP_FAINT, TIP_DARK)  # the ramp the tips are drawn in
+    robot = ChainKind().legend_entries(ViewSettings(), constraint_colors=False, view=None, solved=None)
+    assert not any(entry.swatch.shape == "cross" for entry in robot)  # 3-D draws the target as the gizmo
