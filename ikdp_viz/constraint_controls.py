@@ -33,6 +33,7 @@ from ikdp_viz.constraint_scene import (
     build_constraints,
     follow_choice,
     holds,
+    is_branch_switch,
     overlay_segments,
 )
 from ikdp_viz.lock_fields import lock_fields
@@ -57,6 +58,7 @@ class ConstraintControls:
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
         self.largest_jump = 0.0
+        self.branch_switches = 0  # follow mode's changes of branch (ikdp.tracking's rule) since it was turned on
         self.highlight_set: tuple | None = None  # (panel, number) follow mode wrote into the highlight dropdown
         self.overlay = None
         self.target_marks = None  # the free axis and its ring through the target (a child of the target's gizmo)
@@ -131,7 +133,7 @@ class ConstraintControls:
             self.clear_obstacles(ask=False)
             self.post(Call(lambda writer: (self._remove_overlay(), self._draw_target_marks(writer, "full pose"))))
             self.folder.remove()
-            self.last_pose, self.largest_jump = None, 0.0
+            self.last_pose, self.largest_jump, self.branch_switches = None, 0.0, 0
             self.build(solver)
 
     def _on_lock(self, box, value) -> None:
@@ -140,7 +142,7 @@ class ConstraintControls:
 
     def _on_near(self) -> None:
         if not (self.stay_near.value or self.follow.value):
-            self.largest_jump = 0.0
+            self.largest_jump, self.branch_switches = 0.0, 0
         if not self.follow.value and self.highlight_set is not None:
             # follow mode had set the highlight to the sample it kept: give "best" back (finding 8), unless the
             # user chose another sample since
@@ -261,6 +263,11 @@ class ConstraintControls:
         choice, jump = follow_choice(
             self.solver.arm, solved.final_angles, self.last_pose if following else None, errors
         )
+        switched = False
+        if following and self.last_pose is not None:
+            kept = solved.final_angles[choice]
+            switched = is_branch_switch(self.solver.arm, self.last_pose, solved.request.target, kept, jump)
+            self.branch_switches += int(switched)
         if following:
             self.largest_jump = max(self.largest_jump, jump)
             panel.highlight.value = str(choice + 1)
@@ -270,7 +277,14 @@ class ConstraintControls:
         self.last_pose = solved.final_angles[choice].copy()
         reaches = float(view.final_error.min()) <= REACH_FRACTION * self.solver.arm.span
         self.readout.content = readout_text(
-            solved, choice, jump if following else None, self.largest_jump, self.locks()[1], reaches=reaches
+            solved,
+            choice,
+            jump if following else None,
+            self.largest_jump,
+            self.locks()[1],
+            reaches=reaches,
+            switches=self.branch_switches,
+            switched=switched,
         )
 
     def _remove_overlay(self) -> None:

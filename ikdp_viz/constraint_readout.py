@@ -11,8 +11,9 @@ from ikdp_viz.constraint_scene import first_holding_state, holds
 
 
 def readout_text(solved, choice: int, jump: float | None, largest_jump: float, lock_notes: list[str], *,
-                 reaches: bool) -> str:  # fmt: skip
-    """The readout for `solved` with sample `choice` kept; `reaches`: some returned pose reaches the target."""
+                 reaches: bool, switches: int = 0, switched: bool = False) -> str:  # fmt: skip
+    """The readout for `solved` with sample `choice` kept; `reaches`: some returned pose reaches the target;
+    `switched`: follow mode's kept pose changed branch at this target, `switches` times so far."""
     lines = []
     measure = getattr(solved.view, "rotation_measure", "rotation")
     if measure == "none":
@@ -46,4 +47,8 @@ def readout_text(solved, choice: int, jump: float | None, largest_jump: float, l
         )
     if jump is not None:
         lines.append(f"joint jump {jump:.3f} rad, largest so far **{largest_jump:.3f} rad**")
+        if switched:
+            lines.append("**branch switch**: no sample continues the last pose; the arm jumps to another solution here")
+        if switches:
+            lines.append(f"branch switches so far: {switches}")
     return "  \n".join(lines) if lines else "No constraint."

@@ -139,6 +139,18 @@ def overlay_segments(points: np.ndarray, violation: np.ndarray) -> tuple[np.ndar
     return segments.reshape(-1, 2, 3), colors.reshape(-1, 2, 3)
 
 
+def is_branch_switch(arm, previous: np.ndarray, target: np.ndarray, kept: np.ndarray, jump: float) -> bool:
+    """Whether follow mode's kept pose changed branch: ikdp.tracking's rule (a jump above its floor and many
+    times the joint move that going from `previous` to `target` needs), so the viewer flags what track() flags."""
+    from ikdp.tracking import branch_switches, needed_jumps
+
+    def as_row(values):
+        return torch.as_tensor(np.asarray(values), dtype=torch.float64)[None]
+
+    needed = needed_jumps(arm, as_row(target), as_row(previous)[0], as_row(kept))
+    return bool(branch_switches(torch.tensor([jump], dtype=needed.dtype), needed)[0])
+
+
 def follow_choice(arm, final_angles: np.ndarray, previous: np.ndarray | None, errors: np.ndarray) -> tuple[int, float]:
     """The sample to keep in follow mode and its largest joint jump from `previous` (radians / metres).
 

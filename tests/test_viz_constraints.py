@@ -22,6 +22,7 @@ from ikdp_viz.constraint_scene import (
     first_holding_state,
     follow_choice,
     holds,
+    is_branch_switch,
     overlay_segments,
     sample_tints,
 )
@@ -55,6 +56,17 @@ def test_follow_keeps_the_nearest_sample_that_reaches():
     choice, jump = follow_choice(arm, finals, np.array([3.1, -1.0]), errors)
     assert choice == 1 and jump == pytest.approx(0.1)
     assert follow_choice(arm, finals, None, errors) == (0, 0.0)
+
+
+def test_follow_flags_a_change_of_branch_by_the_libraries_rule():
+    arm = ikdp.PlanarArm([1.0, 1.0])
+    previous = np.array([0.3, 1.2])
+    moved = np.array([0.301, 1.2])  # a step of a millimetre along the path
+    target = arm.end_effector(torch.tensor(moved, dtype=torch.float64)).numpy()
+    flipped = moved[::-1].copy()  # the other elbow: the same tip (headings' order does not change their sum)
+    jump_along, jump_flip = 0.001, 0.899
+    assert not is_branch_switch(arm, previous, target, moved, jump_along)
+    assert is_branch_switch(arm, previous, target, flipped, jump_flip)
 
 
 def test_follow_on_a_robot_counts_a_turned_hand_as_a_miss():
