@@ -65,8 +65,18 @@ def over_the_point(point, height: float, camera) -> np.ndarray:
 
 
 def camera_fit_3d(center: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """(position, look_at) of a camera in front of, beside and above the reach ball, seen along (-1, 1, -0.6)."""
-    return center + reach * np.array([1.0, -1.0, 0.6]), center.copy()
+    """(position, look_at) of a camera in front of, beside and above the reach ball, seen along (-1, 1, -0.6).
+
+    At 1.77 reach radii from the centre the whole ball fits viser's 75° field of view (it needs 1 / sin 37.5° =
+    1.64), and the camera looks a quarter of the reach above the base, where an arm mostly works: at 1.54
+    radii, looking at the base, an arm stretched straight up (a Kinova's first target) left the picture.
+    """
+    look_at = center + np.array([0.0, 0.0, LOOK_ABOVE_BASE * reach])
+    return look_at + REACH_DISTANCE * reach * np.array([1.0, -1.0, 0.6]), look_at
+
+
+REACH_DISTANCE = 1.15  # times (1, -1, 0.6): 1.77 reach radii from the point looked at
+LOOK_ABOVE_BASE = 0.25  # in reach radii
 
 
 def move_cameras(server, camera) -> None:
