@@ -109,11 +109,11 @@ def robot(timeout: float = 120.0) -> None:
     app = VizApp(server, ikdp.load("ikdp_panda"))
     try:
         check(app.wait_until_still(timeout), "the Panda's first solve finished")
-        writer = app.writer
+        writer, view = app.writer, app.writer.view  # the view: the robot's nodes (ikdp_viz/robot_view.py)
         check(writer.error is None and app.solved is not None, "the Panda's first solve is on screen, no error")
         check(
-            writer.nodes_shape is not None and len(writer.ghosts) == len(writer.robot_meshes) > 0,
-            f"its {len(writer.robot_meshes)} link meshes and their ghosts were drawn (scipy {scipy})",
+            view.nodes_shape is not None and len(view.ghosts) == len(view.robot_meshes) > 0,
+            f"its {len(view.robot_meshes)} link meshes and their ghosts were drawn (scipy {scipy})",
         )
         url = f"http://127.0.0.1:{server.get_port()}"
         with urllib.request.urlopen(url, timeout=60) as response:
