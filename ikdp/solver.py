@@ -290,7 +290,16 @@ def model_from_checkpoint(payload: dict, source: str = "<memory>") -> IKDiffusio
     state = payload["state_dict"]
     if not isinstance(state, dict) or not all(isinstance(value, torch.Tensor) for value in state.values()):
         raise CheckpointError(f"{source}: state_dict is not a dict of tensors")
-    expected = model.state_dict()
+    problems = weight_differences(model.state_dict(), state)
+    if problems:
+        raise CheckpointError(f"{source}: weights do not match the model: {problems}")
+    model.load_state_dict(state, strict=True)
+    return model
+
+
+def weight_differences(expected: dict, state: dict) -> str:
+    """Where `state` does not fit a model whose state_dict is `expected`: the first difference named (and how many
+    more), or "" when every key is there with its shape."""
     problems = [f"missing key {name!r}" for name in expected if name not in state]
     problems += [f"unexpected key {name!r}" for name in state if name not in expected]
     problems += [
@@ -298,11 +307,8 @@ def model_from_checkpoint(payload: dict, source: str = "<memory>") -> IKDiffusio
         for name in expected
         if name in state and state[name].shape != expected[name].shape
     ]
-    if problems:
-        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-        raise CheckpointError(f"{source}: weights do not match the model: {problems[0]}{more}")
-    model.load_state_dict(state, strict=True)
-    return model
+    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+    return f"{problems[0]}{more}" if problems else ""
 
 
 def resolve_checkpoint(path_or_name: str | Path) -> Path:

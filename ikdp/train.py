@@ -38,7 +38,7 @@ from ikdp.device import checked_device
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior, make_prior
 from ikdp.schedule import ScheduleConfig
-from ikdp.solver import model_from_checkpoint
+from ikdp.solver import model_from_checkpoint, weight_differences
 from ikdp.train_budget import TrainingBudget
 from ikdp.train_progress import TrainingProgress, accuracy_text
 from ikdp.train_recipes import RECIPE_FIELDS, Recipe, recipe_for, recipes_help
@@ -194,12 +194,10 @@ def load_initial_weights(model: IKDiffusion, path: str) -> None:
     source = model_from_checkpoint(read_checkpoint(Path(path)), path)
     if source.arm != model.arm:
         raise ValueError(f"init_from: {path} was trained for another arm ({source.arm!r})")
-    mine, theirs = model.state_dict(), source.state_dict()
-    names = mine.keys() | theirs.keys()
-    mismatched = sorted(n for n in names if n not in mine or n not in theirs or mine[n].shape != theirs[n].shape)
-    if mismatched:
-        raise ValueError(f"init_from: {path} has another network shape (first difference: {mismatched[0]})")
-    model.load_state_dict(theirs)
+    differences = weight_differences(model.state_dict(), source.state_dict())
+    if differences:
+        raise ValueError(f"init_from: {path} has another network shape ({differences})")
+    model.load_state_dict(source.state_dict())
 
 
 def validate(config: TrainConfig) -> None:
