@@ -269,6 +269,9 @@ def render_markdown(runs: dict) -> str:
 
 
 def write_docs(docs: Path, runs: dict) -> None:
+    if not docs.is_file():  # the JSON is written already: say so in one line, no traceback
+        print(f"{docs}: no such file, table not written")
+        return
     text = docs.read_text()
     if BEGIN not in text or END not in text:
         print(f"{docs}: no {BEGIN} ... {END} markers, table not written")
