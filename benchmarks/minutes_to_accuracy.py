@@ -24,6 +24,7 @@ import torch
 import tyro
 
 import ikdp
+from benchmarks.few_step import evaluation_targets
 from benchmarks.robot_benchmark import verdict
 from ikdp.checkpoint import read_checkpoint
 from ikdp.evaluation.machine import machine_description
@@ -61,7 +62,7 @@ def curve(payload: dict) -> list[dict]:
 def final_accuracy(path: str, config: MinutesConfig) -> dict:
     solver = ikdp.load(path)
     arm = solver.arm
-    targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
+    targets = evaluation_targets(solver, config.targets, config.seed)
     raw = solver.solve(targets, num_samples=1, generator=torch.Generator().manual_seed(1))
     position = raw.raw_tip_error[:, 0] * 1000
     rotation = torch.rad2deg(raw.rotation_error[:, 0]) if arm.target_dim == 7 else torch.full_like(position, math.nan)

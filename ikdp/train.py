@@ -435,6 +435,10 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         writer = SummaryWriter(str(log_folder(config)), purge_step=step)
         print(f"TensorBoard logs: {log_folder(config)}", file=sys.stderr)
     started, cpu_started = time.perf_counter(), time.process_time()
+
+    def wall_seconds() -> float:  # this run's training time, with the runs it resumes
+        return seconds_before + time.perf_counter() - started
+
     metrics: dict = {}
 
     def save(final: bool, data_states: list[torch.Tensor] | None) -> None:
@@ -442,12 +446,12 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         solving_model = averaged.module if averaged is not None else model
         metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
         metrics["step"] = step
-        train_record = {**plain_values(config), "step": step, "seconds": seconds_before + time.perf_counter() - started}
+        train_record = {**plain_values(config), "step": step, "seconds": wall_seconds()}
+        # the process's CPU time too: on a shared machine the wall clock also counts other programs' turns
         train_record["cpu_seconds"] = cpu_seconds_before + time.process_time() - cpu_started
         if metrics.get("tip_error_median") is not None:
-            history.append({"step": step, "seconds": train_record["seconds"], **metrics})
-            history[-1]["cpu_seconds"] = train_record["cpu_seconds"]  # the process's CPU time: a shared machine's
-            # wall clock runs 2-4 times faster than a thread's work, this does not
+            clock = {name: train_record[name] for name in ("seconds", "cpu_seconds")}
+            history.append({"step": step, **clock, **metrics})
         train_record["finished"] = final
         train_record["torch_version"] = str(torch.__version__)
         train_record["threads"] = torch.get_num_threads()
@@ -481,7 +485,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
             if averaged is not None:
                 averaged.update_parameters(model)
             step += 1
-            seconds = agreed_seconds(seconds_before + time.perf_counter() - started, processes, budget)
+            seconds = agreed_seconds(wall_seconds(), processes, budget)
             if on_step is not None:
                 on_step(step, model, headings)
             if processes.is_main and (step % 50 == 0 or budget.finished(step, seconds)):
@@ -504,7 +508,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         save(final=not interrupted, data_states=data_states)
         writer.close()
         state = "interrupted, resumable with --resume" if interrupted else "done"
-        minutes = (seconds_before + time.perf_counter() - started) / 60
+        minutes = wall_seconds() / 60
         print(
             f"{output}: {state} at step {step} ({minutes:.1f} min); held-out median {accuracy_text(metrics)}",
             file=sys.stderr,

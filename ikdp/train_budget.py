@@ -32,10 +32,11 @@ class TrainingBudget:
 
     def progress(self, step: int, seconds: float) -> float:
         """The fraction of the budget used, in [0, 1]: the larger of the step and the clock fractions."""
-        fraction = step / self.steps
-        if self.minutes > 0:
-            fraction = max(fraction, seconds / (60.0 * self.minutes))
-        return min(1.0, fraction)
+        return min(1.0, max(step / self.steps, self.clock_fraction(seconds)))
+
+    def clock_fraction(self, seconds: float) -> float:
+        """The fraction of the minutes used; 0 without a clock."""
+        return seconds / (60.0 * self.minutes) if self.minutes > 0 else 0.0
 
     def finished(self, step: int, seconds: float) -> bool:
         return self.progress(step, seconds) >= 1.0
@@ -48,8 +49,6 @@ class TrainingBudget:
         """
         if step < self.warmup:
             return (step + 1) / self.warmup
-        after_warmup = (step - self.warmup) / max(1, self.steps - self.warmup)
-        if self.minutes > 0:
-            after_warmup = max(after_warmup, seconds / (60.0 * self.minutes))
-        after_warmup = min(1.0, after_warmup)
+        by_steps = (step - self.warmup) / max(1, self.steps - self.warmup)
+        after_warmup = min(1.0, max(by_steps, self.clock_fraction(seconds)))
         return FINAL_FRACTION + (1 - FINAL_FRACTION) * 0.5 * (1 + math.cos(math.pi * after_warmup))

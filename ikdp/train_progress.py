@@ -42,12 +42,15 @@ class TrainingProgress:
 
     def show_losses(self, step: int, theta_loss: float, tip_distance: float) -> None:
         self.losses = {"step": str(step), "loss": f"{theta_loss:.4f}", "tip": f"{tip_distance:.4f}"}
-        self.bar.set_postfix(self.losses | ({"held-out": self.held_out} if self.held_out else {}), refresh=False)
+        self._show(refresh=False)
 
     def show_accuracy(self, metrics: dict) -> None:
         """The held-out accuracy of the last save, kept beside the loss until the next one."""
         self.held_out = accuracy_text(metrics)
-        self.bar.set_postfix(self.losses | ({"held-out": self.held_out} if self.held_out else {}))
+        self._show(refresh=True)
+
+    def _show(self, *, refresh: bool) -> None:
+        self.bar.set_postfix(self.losses | ({"held-out": self.held_out} if self.held_out else {}), refresh=refresh)
 
     def close(self) -> None:
         self.bar.close()
