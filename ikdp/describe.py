@@ -37,7 +37,9 @@ def training_command(train: dict) -> str:
         if value == default:
             continue
         flag = "--" + field.name.replace("_", "-")
-        if isinstance(value, bool):
+        if isinstance(value, bool) and default is None:  # a recipe's option: tyro takes --flag True / False
+            parts.append(f"{flag} {value}")
+        elif isinstance(value, bool):
             parts.append(flag if value else "--no-" + field.name.replace("_", "-"))
         elif isinstance(value, tuple):
             parts.append(flag + " " + " ".join(str(v) for v in value))

@@ -76,7 +76,7 @@ class IKDiffusion(nn.Module):
             continuous=self.arm.continuous_joints if robot else None,
         )
         self.schedule = DiffusionSchedule(config.schedule)
-        self.denoiser = build_denoiser(config.denoiser, self.representation, self.arm)
+        self.denoiser = build_denoiser(config.denoiser, self.representation, self.arm, self.schedule.noise_levels())
         self._samplers: dict[tuple[str, int | None, str], Sampler] = {}
 
     def compute_loss(

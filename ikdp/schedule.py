@@ -110,6 +110,10 @@ class DiffusionSchedule:
             + self.sqrt_one_minus_alphas_cumprod[t, None].to(clean) * noise
         )
 
+    def noise_levels(self) -> torch.Tensor:
+        """sigma_t = sqrt((1 - abar_t) / abar_t) of every step, (T,): the noise of x_t / sqrt(abar_t)."""
+        return self.sqrt_one_minus_alphas_cumprod / self.sqrt_alphas_cumprod
+
     def predict_clean(self, model_output: torch.Tensor, t: int, sample: torch.Tensor, prediction: str) -> torch.Tensor:
         """The denoiser's estimate of x_0, whatever it was trained to predict."""
         if prediction == "sample":

@@ -64,6 +64,7 @@ class TrainConfig:
     blocks: int | None = None  # film: residual blocks
     kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
     kinematics_past_limits: bool = False  # robots: FK features and loss at unclamped joint values (keeps a gradient)
+    dls_skip: bool | None = None  # robots: the DLS step reaches the estimate through a gain learned per timestep
     ema: float | None = None  # decay of an exponential moving average of the weights, saved for solving (0: none)
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
     tip_loss_weight: float | None = None  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
@@ -155,6 +156,7 @@ def build_model(config: TrainConfig) -> IKDiffusion:
             blocks=config.blocks,
             kinematic_until=config.kinematic_until,
             kinematics_past_limits=config.kinematics_past_limits,
+            dls_skip=bool(config.dls_skip) and denoiser == "chain_film",
         ),
         arm=chain.to_config() if chain is not None else None,
     )
@@ -215,6 +217,10 @@ def validate(config: TrainConfig) -> None:
     }.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
+    if config.dls_skip and not ((config.robot or config.urdf) and config.denoiser == "film"):
+        raise ValueError("dls_skip: goes with a robot (--robot or --urdf) and its film denoiser")
+    if config.dls_skip and config.prediction != "sample":
+        raise ValueError("dls_skip: adds a step to the estimate of x_0, so it needs --prediction sample")
     checked_device(config.device)
     if Path(config.output).is_dir():
         raise ValueError(f"output: {config.output!r} is a folder, expected the path of a checkpoint file")

@@ -31,6 +31,7 @@ class Recipe:
     batch: int  # poses per step
     lr: float  # peak learning rate
     warmup: int  # warm-up steps
+    dls_skip: bool  # robots (chain_film): the DLS step reaches the estimate through a learned gain
 
 
 PLANAR = Recipe(
@@ -47,6 +48,7 @@ PLANAR = Recipe(
     batch=1024,
     lr=1e-3,
     warmup=500,
+    dls_skip=False,
 )
 ROBOT_GPU = Recipe(
     name="robot, GPU",
@@ -62,6 +64,7 @@ ROBOT_GPU = Recipe(
     batch=8192,
     lr=1e-3,
     warmup=300,
+    dls_skip=False,
 )
 ROBOT_CPU = Recipe(
     name="robot, CPU",
@@ -77,6 +80,7 @@ ROBOT_CPU = Recipe(
     batch=1024,
     lr=1e-3,
     warmup=500,
+    dls_skip=True,
 )
 
 RECIPE_FIELDS = tuple(field.name for field in fields(Recipe) if field.name != "name")
@@ -101,4 +105,6 @@ def recipes_help() -> str:
 
 
 def shown(value) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
     return value if isinstance(value, str) else f"{value:g}"

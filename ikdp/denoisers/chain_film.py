@@ -7,6 +7,13 @@ J^T (J J^T + lambda^2 I)^-1 e a numerical solver would take from there. Near
 t = 0 denoising becomes "correct a nearly right pose", and the DLS step makes it
 a short reach. It predicts x_0 as x_t plus a correction (zero at start).
 
+With `dls_skip`, the DLS step also reaches the estimate directly, scaled by a gain per timestep
+and coordinate: x̂0 = x_t + g(t) * step + correction. The gain starts at 1 at low noise and 0 at
+high noise (DLS_SKIP_NOISE) and the network learns a change to it. Through the residual MLP alone
+the step is one feature among many: after 8 minutes of CPU training, x̂0 at t = 0 removed 7 % of
+a 55 mm miss (xArm7). A gain learned from zero stayed at 0.3-0.9, because in training x_t at low
+noise is already within a hair of its pose and the step there teaches little; hence the start.
+
 The kinematic features can be switched off above a timestep (`kinematic_until`):
 at the noisy steps, where the pose is decided, the network then sees only x_t
 and the target, which keeps the samples faithful to the prior instead of
@@ -26,10 +33,16 @@ from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the arm's span
 MISS_SCALE = 10.0  # the position miss in tenths of the span: the last steps correct millimetres
+# dls_skip: the noise level (in x units, 1 = half a joint's range) at which the DLS step's gain starts at 1/2;
+# on the xArm7 after 1,000 CPU steps: 41 mm with this start, 57 mm with a gain of 1 at every t, 126 mm from 0
+DLS_SKIP_NOISE = 0.1
 
 
 class ChainFiLMDenoiser(nn.Module):
-    def __init__(self, config: DenoiserConfig, representation: AngleRepresentation, arm):
+    def __init__(
+        self, config: DenoiserConfig, representation: AngleRepresentation, arm, noise_levels: torch.Tensor | None = None
+    ):
+        """`noise_levels`: the schedule's sigma_t = sqrt((1 - abar_t) / abar_t), (T,), which dls_skip needs."""
         super().__init__()
         if representation.kind not in SCALED_BY_LIMITS:
             raise ValueError(f"denoiser 'chain_film': expected one of {SCALED_BY_LIMITS}, got {representation.kind!r}")
@@ -55,35 +68,63 @@ class ChainFiLMDenoiser(nn.Module):
         self.output = nn.Linear(hidden, dim)
         nn.init.zeros_(self.output.weight)  # start as the identity: predict x_0 = x_t
         nn.init.zeros_(self.output.bias)
+        if config.dls_skip:
+            require_feature_width("chain_film", hidden, dim)  # the gain rides in the condition's last row
+            self.step_gain = nn.Linear(config.time_dim, dim)
+            nn.init.zeros_(self.step_gain.weight)
+            nn.init.zeros_(self.step_gain.bias)
+            if noise_levels is None:
+                raise ValueError("denoiser 'chain_film': dls_skip needs the schedule's noise levels")
+            # the gain's start: 1 where the noise is small against the scale on which the arm looks
+            # linear (there the mean clean pose is x_t moved onto the solutions, a DLS step), 0 where large
+            start = 1 / (1 + (noise_levels.double() / DLS_SKIP_NOISE) ** 2)
+            self.register_buffer("step_gain_start", start.float(), persistent=False)
 
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """t: (M,), target: (M, target_dim) -> (M, blocks + 1, 2, hidden).
 
         Rows 0..blocks-1: each block's FiLM scale and shift. The last row carries in [0, :F]
-        the scale of each input feature at this t (kinematic features off at t >= kinematic_until).
+        the scale of each input feature at this t (kinematic features off at t >= kinematic_until),
+        and with `dls_skip` in [1, :D] the gain of the DLS step added to the estimate.
         """
-        embedded = torch.cat((sinusoidal_embedding(t, self.config.time_dim), self.arm.target_features(target)), dim=-1)
+        time = sinusoidal_embedding(t, self.config.time_dim)
+        embedded = torch.cat((time, self.arm.target_features(target)), dim=-1)
         film = self.condition_net(embedded).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
         feature_scale = self.feature_scale.expand(len(t), -1)
         if self.config.kinematic_until > 0:
             feature_scale = feature_scale * (self.kinematic_mask | (t < self.config.kinematic_until)[:, None])
         feature_row = torch.zeros(len(t), 1, 2, self.config.hidden, dtype=film.dtype, device=film.device)
         feature_row[:, 0, 0, : feature_scale.shape[1]] = feature_scale
+        if self.config.dls_skip:
+            gain = self.step_gain_start[t][:, None] + self.step_gain(time)
+            if self.config.kinematic_until > 0:  # no step where the features are off
+                gain = gain * (t < self.config.kinematic_until)[:, None]
+            feature_row[:, 0, 1, : gain.shape[1]] = gain
         return torch.cat((torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2), feature_row), dim=1)
 
     def features(self, x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """(M, D) noisy sample, (M, target_dim) target -> (M, F): x_t, the task error, the DLS step."""
+        return self.features_and_step(x, target)[0]
+
+    def features_and_step(self, x: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """features(), and the DLS step in radians per joint, (M, J)."""
         joints = self.representation.decode(x, clamp=not self.config.kinematics_past_limits)
         error = self.arm.task_error(joints, target)  # (M, E)
-        step = dls_step(self.arm.jacobian(joints), error, self.damping_squared) / self.half_range  # in x units
-        return torch.cat((x, error, step), dim=-1)
+        step = dls_step(self.arm.jacobian(joints), error, self.damping_squared)
+        return torch.cat((x, error, step / self.half_range), dim=-1), step  # the feature in x units
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
         """x: (M, D), target: (M, target_dim), film: condition() rows -> the estimate of x_0, (M, D)."""
         feature_scale = film[:, -1, 0, : self.input.in_features]
-        h = self.input(self.features(x, target) * feature_scale)
+        features, step = self.features_and_step(x, target)
+        h = self.input(features * feature_scale)
         h = film_residual_pass(h, film, self.norms, self.blocks)
-        return x + self.output(nn.functional.silu(h))
+        estimate = x + self.output(nn.functional.silu(h))
+        if self.config.dls_skip:
+            # the step in x's coordinates: where x lands after it, less x (continuous joints as (cos, sin) too)
+            moved = self.representation.encode(self.representation.decode(x, clamp=False) + step) - x
+            estimate = estimate + film[:, -1, 1, : x.shape[1]] * moved
+        return estimate
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         return self.denoise(x, target, self.condition(t, target))

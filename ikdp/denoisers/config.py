@@ -16,6 +16,9 @@ class DenoiserConfig:
     # chain_film: the kinematic features and the loss's FK term at joint values past a limit as they are (True),
     # or clamped into the limits (False, the first Panda model's): a clamped joint gets no FK gradient
     kinematics_past_limits: bool = False
+    # chain_film: add the DLS step to the estimate through a gain learned per timestep and coordinate (zero at
+    # start), so the last steps can take a solver's step instead of relearning it from a feature among many
+    dls_skip: bool = False
     time_dim: int = 64  # size of the sinusoidal timestep embedding
     model_dim: int = 64  # paper: transformer token width
     heads: int = 4  # paper: attention heads
