@@ -65,6 +65,7 @@ class TrainConfig:
     kinematic_until: int = 0  # film: give the tip miss and DLS step features only at t < this (0: every t)
     kinematics_past_limits: bool = False  # robots: FK features and loss at unclamped joint values (keeps a gradient)
     dls_skip: bool | None = None  # robots: the DLS step reaches the estimate through a gain learned per timestep
+    limit_aware_step: bool | None = None  # robots: the DLS step feature solved without joints a limit holds
     ema: float | None = None  # decay of an exponential moving average of the weights, saved for solving (0: none)
     prior: str = "uniform"  # pose prior: uniform, relaxed, or a .npy/.csv file of relative joint angles
     tip_loss_weight: float | None = None  # weight of the FK-consistency term (squared tip miss / reach^2); 0 = paper
@@ -157,6 +158,7 @@ def build_model(config: TrainConfig) -> IKDiffusion:
             kinematic_until=config.kinematic_until,
             kinematics_past_limits=config.kinematics_past_limits,
             dls_skip=bool(config.dls_skip) and denoiser == "chain_film",
+            limit_aware_step=bool(config.limit_aware_step) and denoiser == "chain_film",
         ),
         arm=chain.to_config() if chain is not None else None,
     )
@@ -217,8 +219,9 @@ def validate(config: TrainConfig) -> None:
     }.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
-    if config.dls_skip and not ((config.robot or config.urdf) and config.denoiser == "film"):
-        raise ValueError("dls_skip: goes with a robot (--robot or --urdf) and its film denoiser")
+    for name in ("dls_skip", "limit_aware_step"):
+        if getattr(config, name) and not ((config.robot or config.urdf) and config.denoiser == "film"):
+            raise ValueError(f"{name}: goes with a robot (--robot or --urdf) and its film denoiser")
     if config.dls_skip and config.prediction != "sample":
         raise ValueError("dls_skip: adds a step to the estimate of x_0, so it needs --prediction sample")
     checked_device(config.device)

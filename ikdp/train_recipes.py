@@ -32,6 +32,7 @@ class Recipe:
     lr: float  # peak learning rate
     warmup: int  # warm-up steps
     dls_skip: bool  # robots (chain_film): the DLS step reaches the estimate through a learned gain
+    limit_aware_step: bool  # robots (chain_film): the DLS step solved without the joints a limit holds
 
 
 PLANAR = Recipe(
@@ -49,6 +50,7 @@ PLANAR = Recipe(
     lr=1e-3,
     warmup=500,
     dls_skip=False,
+    limit_aware_step=False,
 )
 ROBOT_GPU = Recipe(
     name="robot, GPU",
@@ -65,6 +67,7 @@ ROBOT_GPU = Recipe(
     lr=1e-3,
     warmup=300,
     dls_skip=False,
+    limit_aware_step=False,
 )
 ROBOT_CPU = Recipe(
     name="robot, CPU",
@@ -81,6 +84,7 @@ ROBOT_CPU = Recipe(
     lr=1e-3,
     warmup=500,
     dls_skip=True,
+    limit_aware_step=True,
 )
 
 RECIPE_FIELDS = tuple(field.name for field in fields(Recipe) if field.name != "name")

@@ -82,3 +82,24 @@ def test_the_skip_where_it_has_no_meaning_is_refused(tmp_path, changes, message)
     config = TrainConfig(steps=2, output=str(tmp_path / "x.pt"), log_dir=str(tmp_path / "tb"), **changes)
     with pytest.raises(ValueError, match=message):
         train(config)
+
+
+def test_the_limit_aware_step_leaves_joints_a_limit_holds_and_misses_less_after_the_clamp(panda):
+    generator = torch.Generator().manual_seed(5)
+    representation = AngleRepresentation("joints", 7, limits=panda.joint_limits, continuous=panda.continuous_joints)
+    lower, upper = panda.joint_limits.unbind(-1)
+    goal = lower + (upper - lower) * torch.rand(400, 7, generator=generator)
+    goal[:, 3] = torch.where(torch.rand(400, generator=generator) < 0.5, lower[3], upper[3])  # the elbow on a limit
+    targets = panda.end_effector(goal)
+    start = panda.normalize_joints(goal + 0.03 * torch.randn(goal.shape, generator=generator))
+    start[:, 3] = goal[:, 3]  # the other six joints can reach the target with the elbow held where it is
+    steps = {}
+    for aware in (False, True):
+        config = DenoiserConfig(kind="chain_film", hidden=32, blocks=1, limit_aware_step=aware)
+        steps[aware] = ChainFiLMDenoiser(config, representation, panda).features_and_step(representation.encode(start), targets)[1]
+    blocked = panda.blocked_by_limits(start, steps[False])
+    assert blocked[:, 3].sum() > 50  # the plain step pushes many elbows out
+    assert bool((steps[True][blocked] == 0).all())
+    rows = blocked.any(-1)
+    miss = {aware: panda.tip_error(panda.normalize_joints(start + step)[:, None], targets[:, None])[rows, 0] for aware, step in steps.items()}
+    assert miss[True].median() < 0.5 * miss[False].median()

@@ -27,7 +27,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
-from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks
+from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks, scale_and_shift
 from ikdp.refine import dls_step
 from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
@@ -100,7 +100,7 @@ class ChainFiLMDenoiser(nn.Module):
             if self.config.kinematic_until > 0:  # no step where the features are off
                 gain = gain * (t < self.config.kinematic_until)[:, None]
             feature_row[:, 0, 1, : gain.shape[1]] = gain
-        return torch.cat((torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2), feature_row), dim=1)
+        return torch.cat((scale_and_shift(film), feature_row), dim=1)
 
     def features(self, x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """(M, D) noisy sample, (M, target_dim) target -> (M, F): x_t, the task error, the DLS step."""
@@ -110,20 +110,26 @@ class ChainFiLMDenoiser(nn.Module):
         """features(), and the DLS step in radians per joint, (M, J)."""
         joints = self.representation.decode(x, clamp=not self.config.kinematics_past_limits)
         error = self.arm.task_error(joints, target)  # (M, E)
-        step = dls_step(self.arm.jacobian(joints), error, self.damping_squared)
+        jacobian = self.arm.jacobian(joints)
+        step = dls_step(jacobian, error, self.damping_squared)
+        if self.config.limit_aware_step:
+            blocked = self.arm.blocked_by_limits(joints, step)
+            held = dls_step(jacobian * ~blocked[..., None, :], error, self.damping_squared)  # without those joints
+            step = torch.where(blocked.any(-1, keepdim=True), held, step)
         return torch.cat((x, error, step / self.half_range), dim=-1), step  # the feature in x units
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
         """x: (M, D), target: (M, target_dim), film: condition() rows -> the estimate of x_0, (M, D)."""
-        feature_scale = film[:, -1, 0, : self.input.in_features]
+        rows = film.unbind(1)  # once: each index of film would fill a zero gradient of its whole size
+        feature_scale, step_gain = rows[-1].unbind(1)
         features, step = self.features_and_step(x, target)
-        h = self.input(features * feature_scale)
-        h = film_residual_pass(h, film, self.norms, self.blocks)
+        h = self.input(features * feature_scale[:, : self.input.in_features])
+        h = film_residual_pass(h, rows, self.norms, self.blocks)
         estimate = x + self.output(nn.functional.silu(h))
         if self.config.dls_skip:
             # the step in x's coordinates: where x lands after it, less x (continuous joints as (cos, sin) too)
             moved = self.representation.encode(self.representation.decode(x, clamp=False) + step) - x
-            estimate = estimate + film[:, -1, 1, : x.shape[1]] * moved
+            estimate = estimate + step_gain[:, : x.shape[1]] * moved
         return estimate
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:

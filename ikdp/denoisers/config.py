@@ -19,6 +19,9 @@ class DenoiserConfig:
     # chain_film: add the DLS step to the estimate through a gain learned per timestep and coordinate (zero at
     # start), so the last steps can take a solver's step instead of relearning it from a feature among many
     dls_skip: bool = False
+    # chain_film: where a joint on its limit would be pushed further out, the DLS step is solved without it (as the
+    # refinement does), instead of a step the clamp undoes; samples stuck at a limit were most of the raw tail
+    limit_aware_step: bool = False
     time_dim: int = 64  # size of the sinusoidal timestep embedding
     model_dim: int = 64  # paper: transformer token width
     heads: int = 4  # paper: attention heads

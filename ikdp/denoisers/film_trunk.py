@@ -22,8 +22,23 @@ def normed_blocks(hidden: int, blocks: int) -> tuple[nn.ModuleList, nn.ModuleLis
     return norms, nn.ModuleList(nn.Linear(hidden, hidden) for _ in range(blocks))
 
 
-def film_residual_pass(h: torch.Tensor, film: torch.Tensor, norms: nn.ModuleList, blocks: nn.ModuleList):
-    """h: (M, hidden), film: (M, >= blocks, 2, hidden) scale then shift -> h after every residual block."""
-    for index, (norm, block) in enumerate(zip(norms, blocks, strict=True)):
-        h = h + block(nn.functional.silu(torch.addcmul(film[:, index, 1], norm(h), film[:, index, 0])))
+def scale_and_shift(film: torch.Tensor) -> torch.Tensor:
+    """The condition network's output (M, blocks, 2, hidden) -> FiLM scales (1 + output) and shifts.
+
+    An added constant, not a stack of two slices: in training each slice's backward filled a zero tensor
+    of the condition's full size (a quarter of a CPU training step on the xArm7).
+    """
+    return film + torch.tensor([1.0, 0.0], dtype=film.dtype, device=film.device)[:, None]
+
+
+def film_residual_pass(h: torch.Tensor, rows, norms: nn.ModuleList, blocks: nn.ModuleList):
+    """h: (M, hidden), rows: film.unbind(1) of a condition (M, >= blocks, 2, hidden), each block's scale then
+    shift -> h after every residual block.
+
+    The caller unbinds the condition once: the backward of one unbind stacks the rows' gradients, where an
+    index per block filled a zero tensor of the whole condition for each.
+    """
+    for row, norm, block in zip(rows, norms, blocks, strict=False):
+        scale, shift = row.unbind(1)
+        h = h + block(nn.functional.silu(torch.addcmul(shift, norm(h), scale)))
     return h

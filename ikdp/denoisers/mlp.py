@@ -15,7 +15,7 @@ from torch import nn
 
 from ikdp.denoisers.config import DenoiserConfig
 from ikdp.denoisers.embeddings import sinusoidal_embedding
-from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks
+from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks, scale_and_shift
 from ikdp.representation import AngleRepresentation
 
 
@@ -34,12 +34,12 @@ class MLPDenoiser(nn.Module):
         """t: (M,), target: (M, target_dim) -> FiLM parameters (M, blocks, 2, hidden): scale and shift."""
         features = torch.cat((sinusoidal_embedding(t, self.config.time_dim), self.arm.target_features(target)), dim=-1)
         film = self.condition_net(features).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
-        return torch.stack((1 + film[:, :, 0], film[:, :, 1]), dim=2)
+        return scale_and_shift(film)
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
         """x: (M, D), film: (M, blocks, 2, hidden) -> the prediction (M, D). `target` is inside `film`."""
         h = self.input(x)
-        h = film_residual_pass(h, film, self.norms, self.blocks)
+        h = film_residual_pass(h, film.unbind(1), self.norms, self.blocks)
         return self.output(nn.functional.silu(h))
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
