@@ -35,6 +35,8 @@ class ViewSettings:
     color_by_constraint: bool = True  # green / red by whether each sample's constraints hold
     followed: bool = False  # follow mode chose the highlighted sample (the Constraints folder)
     joint_space: bool = False  # the joint-space view is on (its colours join the legend)
+    recording: bool = False  # a static page (record.py): the legend lists only what the page draws, and no
+    # control to drag or click
 
     @classmethod
     def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False) -> ViewSettings:

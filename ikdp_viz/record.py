@@ -18,6 +18,7 @@ The viewer's "Share this denoising" button writes the solve on screen the same w
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,7 +65,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
     from ikdp_viz.clock import solve_noise_levels
     from ikdp_viz.frame import Palettes, build_frame
 
-    settings = ViewSettings() if settings is None else settings
+    settings = dataclasses.replace(ViewSettings() if settings is None else settings, recording=True)  # its legend
     if settings.seconds <= 0:
         raise ValueError(f"settings.seconds: expected a positive duration, got {settings.seconds}")
     solver, view, kind = solved.request.solver, solved.view, arm_kind(solved.request.solver)
