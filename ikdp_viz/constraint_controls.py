@@ -215,8 +215,9 @@ class ConstraintControls:
         position = np.asarray(position, dtype=np.float64)
 
         def move(_) -> None:
-            self.obstacles[index]["position"] = position
-            self.on_change()
+            if index < len(self.obstacles):  # a drag's last event may come after Clear
+                self.obstacles[index]["position"] = position
+                self.on_change()
 
         self.on_loop(move, wait=False)
 
