@@ -111,10 +111,11 @@ def label_position(arm_view) -> tuple[float, float, float]:
 
 
 def with_legend(page: str, entries) -> str:
-    """`page` (viser's static client) with the legend in a box at its bottom left, and no notification toasts:
+    """`page` (viser's static client) with the legend in a box at its bottom left, above the playback bar (at the
+    page's foot it covered the bar's time field), and no notification toasts:
     a recording has nothing to notify, and the software-WebGL one covered the scene (finding 11)."""
     box = (
-        '<div id="ikdp-legend" style="position:fixed;left:12px;bottom:12px;z-index:1000;background:rgba(255,255,255,'
+        '<div id="ikdp-legend" style="position:fixed;left:12px;bottom:52px;z-index:1000;background:rgba(255,255,255,'
         '0.88);padding:6px 10px;border-radius:6px;font-family:sans-serif;max-width:340px">'
         + legend_html(list(entries)) + "</div>"
     )  # fmt: skip
