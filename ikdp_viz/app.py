@@ -10,7 +10,9 @@ This file wires four parts: the session (model, target: `session.py`), the solve
 worker (`solve_worker.py`, `solving.py`: it only hands results back), the drawing
 loop (`scene_writer.py`, the one thread that writes the scene, cameras and panel
 outputs, from one `Frame` per picture: `frame.py`) and the panel (`panel.py`).
-Callbacks only change the session and send messages; they never write the scene.
+Callbacks only change the session and send messages; they never write the scene or the panel: a handler that
+changes a control (the highlight's options, the steps slider, a lock field enabled) runs on the drawing loop
+(`writer.run`), so the loop is the one writer of every panel output.
 What differs per kind of arm is an arm kind (`planar_kind.py`, `chain_kind.py`) and
 an arm view (`planar_view.py`, `robot_view.py`), picked in `arm_kinds.py` alone.
 """
@@ -83,12 +85,12 @@ class VizApp:
         self.panel = build_panel(
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
-            checkpoint_label=current, model_text=self._model_description(),
+            checkpoint_label=current, model_text=arm_kind(solver).model_text(solver),
         )  # fmt: skip
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
         self.sampling = SamplingControls(self.panel, lambda: self.request_solve())
-        self.constraint_controls = ConstraintControls(server, solver, self.writer.post, self.request_solve)
+        self.constraint_controls = ConstraintControls(server, solver, self.writer.run, self.request_solve)
         # on the drawing loop's thread: follow mode picks the highlighted sample before the frame that shows it
         self.writer.after_solve = lambda solved: self.constraint_controls.after_solve(solved, self.panel, self.writer)
         self.downloads = Downloads(self.writer, self.panel)
@@ -151,6 +153,8 @@ class VizApp:
             constraints = self.constraint_controls.constraints()
             request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints,
                                            chosen_steps=self.sampling.chosen_steps)  # fmt: skip
+            if self.panel.new_seed.value:  # the new seed shown, so a good draw can be kept: by the loop
+                self.writer.run(lambda writer: setattr(writer.panel.seed, "value", request.seed), wait=False)
             return self.worker.submit(self._job(request), self._solved, self._failed)
 
     def _job(self, request):
@@ -204,7 +208,7 @@ class VizApp:
 
     def _wire_panel(self) -> None:
         panel = self.panel
-        panel.timestep.on_update(self._on_timestep)
+        panel.timestep.on_update(lambda event: self._post(event, ShowState(timestep=float(panel.timestep.value))))
         panel.previous_button.on_click(lambda event: self._post(event, ShowState(delta=-1)))
         panel.next_button.on_click(lambda event: self._post(event, ShowState(delta=+1)))
         panel.play_button.on_click(lambda event: self._post(event, TogglePlay()))
@@ -218,13 +222,18 @@ class VizApp:
         panel.learn.share.on_click(self.downloads.on_share)
         panel.learn.target.go.on_click(lambda _: self.move_typed_target())
         panel.learn.compare.on_update(lambda _: self.request_solve())
-        panel.samples.on_update(lambda _: self.sampling.on_samples())
-        panel.sampler.on_update(lambda _: self.sampling.on_sampler())
-        panel.steps.on_update(lambda _: self.sampling.on_steps())
+        panel.samples.on_update(self._on_loop(self.sampling.on_samples))
+        panel.sampler.on_update(self._on_loop(self.sampling.on_sampler))
+        panel.steps.on_update(self._on_loop(self.sampling.on_steps))
         panel.refine_steps.on_update(lambda _: self.request_solve())
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
-        panel.refine.on_update(lambda _: self.sampling.on_refine())
+        panel.refine.on_update(self._on_loop(self.sampling.on_refine))
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
+
+    def _on_loop(self, handler):
+        """A callback that runs `handler()` on the drawing loop (it writes controls); a value set from Python waits
+        until it has run."""
+        return lambda event: self.writer.run(lambda _: handler(), wait=event.client is None)
 
     def _post(self, event: viser.GuiEvent, message) -> None:
         """Send `message` to the writer; a value set from Python (a script, a test) waits until it is drawn."""
@@ -268,12 +277,6 @@ class VizApp:
         """The solve on screen as one self-contained HTML page (record.py): (file name, page)."""
         return self.downloads.share()
 
-    def _on_timestep(self, event: viser.GuiEvent) -> None:
-        self._post(event, ShowState(timestep=float(self.panel.timestep.value)))
-
-    def _model_description(self) -> str:
-        return arm_kind(self.solver).model_text(self.solver)
-
     # ---------------------------------------------------------------- checkpoints
 
     @property
@@ -291,7 +294,8 @@ class VizApp:
     def refresh_checkpoints(self) -> None:
         """Re-list the checkpoint folder (new models appear as they are trained)."""
         if self.models.refresh(self.solver):
-            self.panel.checkpoint.options = tuple(self.models.paths)
+            options = tuple(self.models.paths)
+            self.writer.run(lambda writer: setattr(writer.panel.checkpoint, "options", options))
 
     def _on_checkpoint(self) -> None:
         label = self.panel.checkpoint.value

@@ -15,7 +15,7 @@ from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors
 from ikdp_viz.constraint_scene import FREE_AXIS_COLOR, HOLDS, VIOLATES, holds, sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
 from ikdp_viz.legend import Entry, Swatch
-from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES
+from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, recorded_extras
 from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, trail_colors
 from ikdp_viz.style import ESTIMATE, PRIOR
 
@@ -180,10 +180,18 @@ class ChainKind:
                 Entry(Swatch(OTHERS_FINAL if follows else DARK, faint=FAINT), "skeletons: joint origins to the hand"),
             ]
         trail = "trail (show trail): the highlighted hand's path" if follows else "trail (show trail): the hands' paths"
+        if settings.recording:  # no panel to turn it on or off
+            trail = trail.replace(" (show trail)", "")
+        hand = Entry(Swatch((220, 40, 40)), "hand frame of the highlighted robot: x red, y green, z blue")
+        trail_entry = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT) if follows else Swatch(DARK, faint=FAINT), trail)
+        if settings.recording:  # a static page: what it draws alone, the target a frame no one can drag
+            target = Entry(Swatch((220, 25, 25)), "target: the frame at the target pose, x red, y green, z blue")
+            return [*robots, *([trail_entry] if settings.show_trail else []), hand,
+                    *recorded_extras(settings, solved), target]  # fmt: skip
         entries = [
             *robots,
-            Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT) if follows else Swatch(DARK, faint=FAINT), trail),
-            Entry(Swatch((220, 40, 40)), "hand frame of the highlighted robot: x red, y green, z blue"),
+            trail_entry,
+            hand,
             Entry(Swatch(ESTIMATE), "x̂0 (show x̂0): the denoiser's guess of the final pose"),
             Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
             Entry(Swatch(PRIOR), "poses drawn from the prior"),

@@ -1,9 +1,10 @@
 """The viewer's Constraints folder: a partial target, lock joints, drop and drag obstacles, stay near, follow.
 
 Controls live in their own folder of the panel; the app reads `constraints()` into each
-solve request and hands each finished solve to `after_solve`. Scene nodes (the obstacles'
-gizmos and spheres, the coloured overlay) are created and written on the scene writer's
-thread, through its `Call` message, like every other node.
+solve request and hands each finished solve to `after_solve`. Every handler runs on the drawing
+loop's thread (`on_loop`, the scene writer's `run`): the loop alone changes the obstacles, writes
+their nodes, the overlay and the folder's own controls, so nothing here needs a lock; `constraints()`
+only reads (a copy of the list, whole values), from whichever thread asks for a solve.
 
 - target (pose models only): the full pose, the position only (ikdp.PositionOnly: the gizmo's
   rotation rings are hidden), or the hand free to turn about its x, y or z axis (ikdp.FreeAxis:
@@ -21,15 +22,16 @@ thread, through its `Call` message, like every other node.
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import viser
 
+from ikdp_viz.camera import camera_fit_3d
 from ikdp_viz.constraint_readout import readout_text
 from ikdp_viz.constraint_scene import (
     FREE_AXIS_COLOR,
+    LINK_CLEARANCE,
     TARGET_KINDS,
+    beside_the_arm,
     build_constraints,
     follow_choice,
     holds,
@@ -37,9 +39,7 @@ from ikdp_viz.constraint_scene import (
     overlay_segments,
 )
 from ikdp_viz.lock_fields import lock_fields
-from ikdp_viz.messages import Call
 from ikdp_viz.scene import line_colors
-from ikdp_viz.solving import REACH_FRACTION
 
 OBSTACLE_COLOR = (200, 60, 60)
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
@@ -49,19 +49,15 @@ FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach
 class ConstraintControls:
     """The Constraints folder and its scene nodes for one model; `rebuild` for another."""
 
-    def __init__(self, server: viser.ViserServer, solver, post, on_change):
+    def __init__(self, server: viser.ViserServer, solver, on_loop, on_change):
         self.server = server
-        self.post = post  # the scene writer's post(): nodes are written on its thread
+        self.on_loop = on_loop  # the scene writer's run(function, wait=): on the drawing loop's thread
         self.on_change = on_change  # ask for a new solve
-        self.lock = threading.Lock()  # guards `obstacles`
-        self.model_lock = threading.RLock()  # a rebuild for another model and a solve's readouts, one at a time
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
-        self.largest_jump = 0.0
-        self.branch_switches = 0  # follow mode's changes of branch (ikdp.tracking's rule) since it was turned on
+        self.largest_jump, self.branch_switches = 0.0, 0  # follow mode's, since it was turned on (ikdp.tracking's)
         self.highlight_set: tuple | None = None  # (panel, number) follow mode wrote into the highlight dropdown
-        self.overlay = None
-        self.target_marks = None  # the free axis and its ring through the target (a child of the target's gizmo)
+        self.overlay = self.target_marks = None  # the coloured states; the free axis and its ring (target's child)
         self.build(solver)
 
     # ------------------------------------------------------------------ the folder
@@ -88,7 +84,8 @@ class ConstraintControls:
                     field.label, field.initial, min=field.low, max=field.high, step=0.1, disabled=True,
                     hint="any angle: it wraps into (-180°, 180°]" if field.wraps else "within the joint's limits",
                 )  # fmt: skip
-                box.on_update(lambda _, box=box, value=value: self._on_lock(box, value))
+                on_lock = lambda _, box=box, value=value: self._on_lock(box, value)
+                box.on_update(lambda event, on_lock=on_lock: self._loop(event, on_lock))
                 value.on_update(lambda _: self.on_change())
                 self.lock_boxes.append(box)
                 self.lock_values.append(value)
@@ -112,29 +109,31 @@ class ConstraintControls:
         self.add_button.on_click(lambda _: self.add_obstacle())
         self.clear_button.on_click(lambda _: self.clear_obstacles())
         for toggle in (self.stay_near, self.follow):
-            toggle.on_update(lambda _: self._on_near())
-        self.color_states.on_update(lambda _: self.post(Call(self._on_color_states)))
+            toggle.on_update(lambda event: self._loop(event, lambda _: self._on_near()))
+        self.color_states.on_update(lambda event: self._loop(event, self._on_color_states))
         if self.target_kind is not None:
-            self.target_kind.on_update(lambda _: self._on_target_kind())
+            self.target_kind.on_update(lambda event: self._loop(event, self._on_target_kind))
+
+    def _loop(self, event, handler) -> None:  # handler(writer) on the loop; a value set from Python waits for it
+        self.on_loop(handler, wait=event.client is None)
 
     def _on_color_states(self, writer) -> None:
         """Writer thread: the overlay and every sample's colours follow the checkbox."""
         writer.set_constraint_colors(self.color_states.value)
         self._draw_overlay(writer.solved)
 
-    def _on_target_kind(self) -> None:
-        kind = str(self.target_kind.value)
-        self.post(Call(lambda writer: self._draw_target_marks(writer, kind)))
+    def _on_target_kind(self, writer) -> None:
+        self._draw_target_marks(writer, str(self.target_kind.value))
         self.on_change()
 
-    def rebuild(self, solver) -> None:
-        """Another model: a fresh folder for its joints, no obstacles, no last pose."""
-        with self.model_lock:
-            self.clear_obstacles(ask=False)
-            self.post(Call(lambda writer: (self._remove_overlay(), self._draw_target_marks(writer, "full pose"))))
-            self.folder.remove()
-            self.last_pose, self.largest_jump, self.branch_switches = None, 0.0, 0
-            self.build(solver)
+    def rebuild(self, solver, writer) -> None:
+        """Drawing loop's thread: another model, a fresh folder for its joints, no obstacles, no last pose."""
+        self.clear_obstacles(ask=False)
+        self._remove_overlay()
+        self._draw_target_marks(writer, "full pose")
+        self.folder.remove()
+        self.last_pose, self.largest_jump, self.branch_switches = None, 0.0, 0
+        self.build(solver)
 
     def _on_lock(self, box, value) -> None:
         value.disabled = not box.value
@@ -155,10 +154,9 @@ class ConstraintControls:
     # ------------------------------------------------------------------ what a solve asks for
 
     def constraints(self) -> tuple:
-        """The panel's constraints now, as ikdp constraint objects."""
+        """The panel's constraints now, as ikdp constraint objects (any thread: it only reads)."""
         locks = self.locks()[0]
-        with self.lock:
-            obstacles = [(entry["position"], entry["radius"]) for entry in self.obstacles]
+        obstacles = [(entry["position"], entry["radius"]) for entry in tuple(self.obstacles)]  # the loop may add one
         near = self.last_pose if (self.stay_near.value or self.follow.value) else None
         kind = "full pose" if self.target_kind is None else str(self.target_kind.value)
         return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar", target_kind=kind)
@@ -194,64 +192,55 @@ class ConstraintControls:
     # ------------------------------------------------------------------ obstacles
 
     def add_obstacle(self, position=None, radius: float | None = None) -> int:
-        """Drop an obstacle (between the base and the target when no position is given); returns its index."""
+        """Drop an obstacle (where `obstacle_drop` puts it when no position is given); returns its index. Any
+        thread: it runs on the drawing loop and waits for it."""
+        added: list[int] = []
+        self.on_loop(lambda writer: added.append(self._add_obstacle(position, radius)), wait=True)
+        return added[0]
+
+    def _add_obstacle(self, position, radius: float | None) -> int:
         radius = float(self.radius.value if radius is None else radius)
         if position is None:
-            position = self._default_position()
-        position = np.asarray(position, dtype=np.float64)
-        with self.lock:
-            index = len(self.obstacles)
-            entry = {"position": position, "radius": radius, "nodes": []}
-            self.obstacles.append(entry)
-        self.post(Call(lambda writer: self._add_obstacle_nodes(index, entry)))
+            position = obstacle_drop(self.solver.arm, self.last_pose, radius)
+        entry = {"position": np.asarray(position, dtype=np.float64), "radius": radius, "nodes": []}
+        index = len(self.obstacles)
+        entry["nodes"] = obstacle_nodes(self.server, index, entry, planar=self.solver.arm.kind == "planar",
+                                        moved=self.move_obstacle)  # fmt: skip
+        self.obstacles = [*self.obstacles, entry]  # a new list: a solve request may be copying the old one
         self.on_change()
         return index
 
     def move_obstacle(self, index: int, position) -> None:
-        with self.lock:
-            self.obstacles[index]["position"] = np.asarray(position, dtype=np.float64)
-        self.on_change()
+        """The obstacle's gizmo callback: the loop moves it and asks for a solve."""
+        position = np.asarray(position, dtype=np.float64)
+
+        def move(_) -> None:
+            if index < len(self.obstacles):  # a drag's last event may come after Clear
+                self.obstacles[index]["position"] = position
+                self.on_change()
+
+        self.on_loop(move, wait=False)
 
     def clear_obstacles(self, ask: bool = True) -> None:
-        with self.lock:
+        def clear(_) -> None:
             removed, self.obstacles = self.obstacles, []
-        self.post(Call(lambda writer: [node.remove() for entry in removed for node in entry["nodes"]]))
-        if ask:
-            self.on_change()
+            for entry in removed:
+                for node in entry["nodes"]:
+                    node.remove()
+            if ask:
+                self.on_change()
 
-    def _default_position(self) -> np.ndarray:
-        arm = self.solver.arm
-        if self.last_pose is not None:  # on the middle of the arm as it stands: the easy solution is blocked
-            points = arm.forward_kinematics(np.asarray(self.last_pose, dtype=np.float64)[None])[0].numpy()
-            middle = points[len(points) // 2]
-        else:
-            middle = np.array([0.3 * arm.span, 0.3 * arm.span, 0.0])
-        return np.concatenate([middle, np.zeros(3 - len(middle))]) if len(middle) < 3 else middle
-
-    def _add_obstacle_nodes(self, index: int, entry: dict) -> None:
-        """Writer thread: the gizmo (in the plane for a planar arm) and its sphere, a child that moves with it."""
-        planar = self.solver.arm.kind == "planar"
-        gizmo = self.server.scene.add_transform_controls(
-            f"/constraints/obstacle_{index}", scale=max(2 * entry["radius"], 0.1), disable_rotations=True,
-            active_axes=(True, True, not planar), position=tuple(entry["position"]),
-        )  # fmt: skip
-        sphere = self.server.scene.add_icosphere(
-            f"/constraints/obstacle_{index}/sphere", radius=entry["radius"], color=OBSTACLE_COLOR, opacity=0.45,
-            subdivisions=2, cast_shadow=False, receive_shadow=False,
-        )  # fmt: skip
-        gizmo.on_update(lambda event, index=index: self.move_obstacle(index, event.target.position))
-        entry["nodes"] = [sphere, gizmo]
+        self.on_loop(clear, wait=True)
 
     # ------------------------------------------------------------------ after a solve
 
     def after_solve(self, solved, panel, writer) -> None:
         """Drawing loop's thread, as a solve goes on screen: keep the pose (follow: the nearest sample that
         reaches, highlighted), write the readouts."""
-        with self.model_lock:
-            writer.followed = bool(self.follow.value)
-            if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
-                self._after_solve(solved, panel)
-                self._draw_overlay(solved)
+        writer.followed = bool(self.follow.value)
+        if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
+            self._after_solve(solved, panel)
+            self._draw_overlay(solved)
 
     def _after_solve(self, solved, panel) -> None:
         view = solved.view
@@ -275,14 +264,13 @@ class ConstraintControls:
         elif panel.highlight.value != "best":
             choice = min(int(panel.highlight.value), len(errors)) - 1
         self.last_pose = solved.final_angles[choice].copy()
-        reaches = float(view.final_error.min()) <= REACH_FRACTION * self.solver.arm.span
         self.readout.content = readout_text(
             solved,
             choice,
             jump if following else None,
             self.largest_jump,
             self.locks()[1],
-            reaches=reaches,
+            reaches=solved.reaches,
             switches=self.branch_switches,
             switched=switched,
         )
@@ -320,3 +308,33 @@ def free_axis_segments(axis: np.ndarray, reach: float) -> np.ndarray:
     angles = np.linspace(0.0, 2 * np.pi, 33)
     ring = FREE_AXIS_RING * reach * (np.cos(angles)[:, None] * across + np.sin(angles)[:, None] * other)  # (33, 3)
     return np.concatenate([line, np.stack([ring[:-1], ring[1:]], axis=1)]).astype(np.float32)
+
+
+def obstacle_drop(arm, last_pose, radius: float) -> np.ndarray:
+    """(3,) where a new obstacle goes: on the middle of the arm as it stands, so the easy solution is blocked (a
+    robot's just in front of it, toward the camera, or its opaque meshes hide the sphere: finding 4)."""
+    if last_pose is None:
+        return np.array([0.3 * arm.span, 0.3 * arm.span, 0.0])
+    points = arm.forward_kinematics(np.asarray(last_pose, dtype=np.float64)[None])[0].numpy()
+    if points.shape[-1] == 3:
+        reach = float(arm.reach[1])
+        camera = camera_fit_3d(arm.reach_center.double().numpy(), reach)[0]
+        return beside_the_arm(points, radius, camera, LINK_CLEARANCE * reach)
+    return np.concatenate([points[len(points) // 2], [0.0]])
+
+
+def obstacle_nodes(server, index: int, entry: dict, *, planar: bool, moved) -> list:
+    """The obstacle's sphere and its gizmo (in the plane for a planar arm), the sphere a child that moves with it;
+    `moved(index, position)` on each drag."""
+    gizmo = server.scene.add_transform_controls(
+        f"/constraints/obstacle_{index}", scale=max(2 * entry["radius"], 0.1), disable_rotations=True,
+        active_axes=(True, True, not planar), position=tuple(entry["position"]),
+    )  # fmt: skip
+    sphere = server.scene.add_icosphere(
+        f"/constraints/obstacle_{index}/sphere", radius=entry["radius"], color=OBSTACLE_COLOR,
+        # a robot's: denser and flat-lit, so it reads as a red ball in front of the dark meshes
+        opacity=0.45 if planar else 0.6, material="standard" if planar else "toon3",
+        subdivisions=2, cast_shadow=False, receive_shadow=False,
+    )  # fmt: skip
+    gizmo.on_update(lambda event: moved(index, event.target.position))
+    return [sphere, gizmo]

@@ -21,7 +21,6 @@ def readout_text(solved, choice: int, jump: float | None, largest_jump: float, l
     elif measure != "rotation":
         lines.append(f"target: the hand's **{measure} free**, any turn about it")
     lines += [f"lock: {note}" for note in lock_notes]
-    names = {item.name for item in solved.request.constraints}
     if solved.state_violation is not None:
         count = len(solved.state_violation[-1])
         met = int(holds(solved.state_violation[-1]).sum())
@@ -30,16 +29,7 @@ def readout_text(solved, choice: int, jump: float | None, largest_jump: float, l
         held = "never" if first is None else f"from state {first} of {states} (t = {solved.view.labels[first]})"
         lines.append(f"constraints met by {met} of {count} raw samples")
         lines.append(f"sample {choice + 1}: holds {held}")
-        if met == 0:
-            why = []
-            if "obstacles" in names:
-                why.append("every one touches an obstacle: move it, or make it smaller")
-            if "locked_joints" in names:
-                why.append("a locked joint may leave no way around it")
-            lines.append(f"**no sample meets the constraints**: {'; '.join(why) or 'try more samples (K)'}")
-    if not reaches and "locked_joints" in names:
-        lines.append("**no sample reaches the target with these locks**: the locked joints keep the hand from it; "
-                     "unlock one or change its value")  # fmt: skip
+    lines += unmet_reasons(solved, reaches=reaches)
     if solved.pull_missed is not None:
         lines.append(
             f"**stay near: every pulled sample missed the target** (best {solved.pull_missed:.3g} away); "
@@ -52,3 +42,39 @@ def readout_text(solved, choice: int, jump: float | None, largest_jump: float, l
         if switches:
             lines.append(f"branch switches so far: {switches}")
     return "  \n".join(lines) if lines else "No constraint."
+
+
+# what each checked constraint's failure means to a user, and what to do (ikdp constraint name -> words)
+FAILING_WORDS = {
+    "obstacles": ("touches an obstacle", "move it, or make it smaller"),
+    "locked_joints": ("is off a locked joint's value", "unlock it or change its value"),
+}
+
+
+def unmet_reasons(solved, *, reaches: bool | None = None) -> list[str]:
+    """Why no sample meets the constraints, or reaches the target, in words: which constraint fails in how many
+    of the K raw samples at t = 0, and whether the locks keep the hand from the target (findings 4, 16). [] when
+    some sample meets them and reaches. Both readouts say it: the main one and the Constraints folder's."""
+    names = {item.name for item in solved.request.constraints}
+    if not names:
+        return []
+    reaches = solved.reaches if reaches is None else reaches
+    lines = []
+    if solved.state_violation is not None and not holds(solved.state_violation[-1]).any():
+        count = solved.state_violation.shape[1]
+        why = []
+        for name, violation in solved.final_violations:
+            failing = int((~holds(violation)).sum())
+            if failing:
+                failure, remedy = FAILING_WORDS.get(name, (f"fails {name.replace('_', ' ')}", "relax it"))
+                who = "every sample" if failing == count else f"{failing} of {count} samples"
+                why.append(f"{who} {failure}: {remedy}")
+        if not why and "obstacles" in names:  # no per-constraint split (an older solve): the obstacle is the one
+            why.append("every one touches an obstacle: move it, or make it smaller")
+        lines.append(f"**no sample meets the constraints**: {'; '.join(why) or 'try more samples (K)'}")
+    if not reaches and "locked_joints" in names:
+        lines.append("**no sample reaches the target with these locks**: the locked joints keep the hand from it; "
+                     "unlock one or change its value")  # fmt: skip
+    elif not reaches and "obstacles" in names:
+        lines.append("**no sample reaches the target past the obstacles**: move them, or make them smaller")
+    return lines

@@ -88,11 +88,50 @@ def build_constraints(
     return tuple(constraints)
 
 
+LINK_CLEARANCE = 0.07  # a robot's links' half-thickness about its joint origins' line, in reach radii (the
+# Panda's meshes are about 6 cm about it): a dropped sphere clears the shown robot's meshes by this
+
+
+def segment_distances(point: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(P-1,) the distance from `point` (3,) to each segment of the polyline `points` (P, 3)."""
+    start, end = points[:-1], points[1:]
+    along = end - start
+    length2 = np.maximum((along * along).sum(axis=-1), 1e-12)
+    fraction = np.clip(((point - start) * along).sum(axis=-1) / length2, 0.0, 1.0)
+    return np.linalg.norm(start + fraction[:, None] * along - point, axis=-1)
+
+
+def beside_the_arm(points: np.ndarray, radius: float, camera: np.ndarray, clearance: float) -> np.ndarray:
+    """(3,) where a dropped 3-D sphere of `radius` is seen: from the middle joint of the pose shown, toward the
+    camera until it clears every link by `clearance`. Dropped on the middle joint itself it sat inside the opaque
+    robot and could not be seen (issue 25, finding 4); here it stands just in front of it, one drag away."""
+    points = np.asarray(points, dtype=np.float64)
+    middle = points[len(points) // 2]
+    toward = np.asarray(camera, dtype=np.float64) - middle
+    toward /= max(np.linalg.norm(toward), 1e-12)
+    needed = radius + clearance
+    for steps in range(200):  # in quarter radii: the first place clear of every link
+        where = middle + toward * (needed + 0.25 * radius * steps)
+        if segment_distances(where, points).min() >= needed:
+            return where
+    return where
+
+
 def state_violation(solver, constraints, result) -> np.ndarray:
     """(S+1, K) each state's summed violation of the solve's constraints (one target)."""
     trajectory = result.trajectory[:, 0]  # (S+1, K, J)
     checked = ConstraintSet(solver.arm, list(constraints), 1, trajectory.shape[1])
     return np.stack([checked.violation(state[None])[0].numpy() for state in trajectory])
+
+
+def final_violations(solver, constraints, result) -> tuple:
+    """((name, (K,) violation of the last state), ...) for each checkable constraint alone: which one fails."""
+    last = result.trajectory[-1, 0][None]  # (1, K, J)
+    return tuple(
+        (item.name, ConstraintSet(solver.arm, [item], 1, last.shape[1]).violation(last)[0].numpy())
+        for item in constraints
+        if checkable([item])
+    )
 
 
 def holds(violation: np.ndarray) -> np.ndarray:

@@ -6,12 +6,10 @@ snapshot, as a frame is built), then render on the thread of the tab's click.
 
 from __future__ import annotations
 
-import threading
 from pathlib import Path
 
 import viser
 
-from ikdp_viz.messages import Call
 from ikdp_viz.record import file_name
 
 PICTURE_WORDS = ("trail", "highlighted", "constraints", "skeletons:")  # the legend's entries a flat picture draws too
@@ -48,19 +46,20 @@ def export_picture(solved, settings, solver):
 
 
 class Downloads:
-    """The Export and Share buttons of one viewer."""
+    """The Export and Share buttons of one viewer. The files render on the thread of the tab's click; what the tab
+    sees of it (the Share button's label, the Export notification) is written by the drawing loop (`writer.run`),
+    which also decides, by its own flag, that one export renders at a time: no lock."""
 
     def __init__(self, writer, panel):
         self.writer, self.panel = writer, panel
-        self._export_lock = threading.Lock()  # one export renders at a time
+        self.share_label = panel.learn.share.label  # the button's label when it is not recording
+        self._exporting = False  # an export is rendering (read and set on the drawing loop's thread only)
         self._export_notes: dict[int, viser.NotificationHandle] = {}  # client id -> its export's notification
 
     def snapshot(self, what: str):
         """(solve on screen, view settings, solver, frame) read on the drawing loop's thread, or ValueError."""
         done: list = []
-        self.writer.post(Call(lambda writer: done.append((writer.solved, writer.settings(), writer.solver,
-                                                          writer.frame))))  # fmt: skip
-        self.writer.flush()
+        self.writer.run(lambda writer: done.append((writer.solved, writer.settings(), writer.solver, writer.frame)))
         solved, settings, solver, frame = done[0]  # one snapshot: the four belong together
         if solved is None:
             raise ValueError(f"{what}: nothing solved yet")
@@ -93,30 +92,42 @@ class Downloads:
         client = event.client
         if client is None:
             return
+        started: list = []
+        self.writer.run(lambda _: started.append(self._start_export(client)))
+        note = started[0]
+        if note is None:
+            return  # another export is rendering: the notification says so
+        tell = lambda **fields: self.writer.run(lambda _: note_fields(note, fields), wait=False)
+        try:
+            progress = lambda done, total: tell(body=f"rendering the GIF: frame {done} of {total}")
+            with tempfile.TemporaryDirectory() as folder:
+                paths = self.export(Path(folder), progress=progress)
+                tell(body="sending the files")
+                for path in paths:
+                    client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
+            # a zero-width space after each "_" lets the long names wrap instead of being cut off with "..."
+            names = [path.name.replace("_", "_\u200b") for path in paths]
+            tell(title="Exported to your downloads", body=" and ".join(names))
+        except ValueError as error:
+            tell(title="Export failed", body=str(error), color="red")
+        finally:
+            tell(loading=False, with_close_button=True, auto_close_seconds=8.0)
+            self.writer.run(lambda _: setattr(self, "_exporting", False), wait=False)
+
+    def _start_export(self, client) -> viser.NotificationHandle | None:
+        """Drawing loop's thread: the tab's notification for a new export (its last one removed); None when another
+        export is rendering, which the notification then says."""
         previous = self._export_notes.pop(client.client_id, None)
         if previous is not None:  # popped, so never removed twice
             previous.remove()
         note = client.add_notification("Export", "starting", loading=True, with_close_button=False)
         self._export_notes[client.client_id] = note
-        if not self._export_lock.acquire(blocking=False):
-            note.title, note.body, note.loading = "Export", "another export is rendering; try again", False
-            note.with_close_button, note.auto_close_seconds = True, 5.0
-            return
-        try:
-            progress = lambda done, total: setattr(note, "body", f"rendering the GIF: frame {done} of {total}")
-            with tempfile.TemporaryDirectory() as folder:
-                paths = self.export(Path(folder), progress=progress)
-                note.body = "sending the files"
-                for path in paths:
-                    client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
-            # a zero-width space after each "_" lets the long names wrap instead of being cut off with "..."
-            names = [path.name.replace("_", "_\u200b") for path in paths]
-            note.title, note.body = "Exported to your downloads", " and ".join(names)
-        except ValueError as error:
-            note.title, note.body, note.color = "Export failed", str(error), "red"
-        finally:
-            self._export_lock.release()
-        note.loading, note.with_close_button, note.auto_close_seconds = False, True, 8.0
+        if self._exporting:
+            note_fields(note, dict(body="another export is rendering; try again", loading=False,
+                                   with_close_button=True, auto_close_seconds=5.0))  # fmt: skip
+            return None
+        self._exporting = True
+        return note
 
     def share(self) -> tuple[str, str]:
         """The solve on screen as one self-contained HTML page (record.py) with the panel's view: (file name, page)."""
@@ -129,10 +140,18 @@ class Downloads:
         """Record the solve on screen and send the page to the tab that asked; the button says while it works."""
         if event.client is None or self.writer.solved is None:
             return
-        button = self.panel.learn.share
-        label, button.label, button.disabled = button.label, "Recording the denoising...", True
+        self.writer.run(lambda writer: button_state(writer.panel.learn.share, "Recording the denoising...", True))
         try:
             name, page = self.share()
             event.client.send_file_download(name, page.encode("utf-8"), save_immediately=True)
         finally:
-            button.label, button.disabled = label, False
+            self.writer.run(lambda writer: button_state(writer.panel.learn.share, self.share_label, False))
+
+
+def note_fields(note, fields: dict) -> None:
+    for name, value in fields.items():
+        setattr(note, name, value)
+
+
+def button_state(button, label: str, disabled: bool) -> None:
+    button.label, button.disabled = label, disabled

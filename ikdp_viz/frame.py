@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ikdp_viz.clock import CLOCK_CHOICES
+from ikdp_viz.constraint_readout import unmet_reasons
 from ikdp_viz.constraint_scene import holds, met_text
 from ikdp_viz.emphasis import TRAIL_CHOICES
 from ikdp_viz.legend import Entry
@@ -35,6 +36,8 @@ class ViewSettings:
     color_by_constraint: bool = True  # green / red by whether each sample's constraints hold
     followed: bool = False  # follow mode chose the highlighted sample (the Constraints folder)
     joint_space: bool = False  # the joint-space view is on (its colours join the legend)
+    recording: bool = False  # a static page (record.py): the legend lists only what the page draws, and no
+    # control to drag or click
 
     @classmethod
     def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False) -> ViewSettings:
@@ -119,6 +122,7 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
                 f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
+    text += "".join("  \n" + line for line in unmet_reasons(solved))  # why, here too: the folder starts closed
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:

@@ -44,6 +44,15 @@ class MessageLoop:
                 self._thread.start()
         self._queue.put(message)
 
+    def run(self, message, *, wait: bool) -> None:
+        """Apply `message` on the loop's thread: now when already on it, else posted (and waited for, when `wait`)."""
+        if self.on_thread():
+            self._apply(message)
+        else:
+            self.post(message)
+            if wait:
+                self.flush()
+
     def flush(self, timeout: float = 30.0) -> bool:
         """Block until every message posted so far has been applied (True), or `timeout` passes (False)."""
         if self.on_thread():

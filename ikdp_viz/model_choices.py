@@ -13,7 +13,7 @@ import numpy as np
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.messages import Call, NewModel
+from ikdp_viz.messages import NewModel
 from ikdp_viz.session import initial_target
 
 
@@ -83,12 +83,16 @@ class ModelChoices:
 def switch_model(app, path: Path) -> bool:
     """Load `path` into `app` (a VizApp): its panel, its scene for the arm, a solve of the old target pulled into the
     new workspace. False, with the reason in the Model folder, when the file cannot be used or drives another kind
-    of arm."""
+    of arm. The file is read on the calling thread; the switch itself runs on the drawing loop, the one writer of
+    the panel and the scene (and of the Constraints folder it rebuilds)."""
     described = arm_kind(app.solver).model_text(app.solver)
 
     def refused(reason: str) -> bool:
-        show_model_text(app, f"**Could not load** {reason}  \n\n" + described)
-        app.panel.checkpoint.value = app._current_checkpoint_label()  # the dropdown back on the open model
+        def say(writer) -> None:
+            writer.panel.model_text.content = f"**Could not load** {reason}  \n\n" + described
+            writer.panel.checkpoint.value = app._current_checkpoint_label()  # the dropdown back on the open model
+
+        app.writer.run(say)
         return False
 
     try:
@@ -98,23 +102,22 @@ def switch_model(app, path: Path) -> bool:
     if arm_kind(solver) is not arm_kind(app.solver):  # the drawing loop draws one kind of arm
         return refused(f"{path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
                        f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}")  # fmt: skip
+    app.writer.run(lambda writer: adopt_model(app, writer, solver))
+    return True
+
+
+def adopt_model(app, writer, solver) -> None:
+    """Drawing loop's thread: `solver` becomes the app's model; the old target is asked again in its workspace."""
     with app.session.lock:
         previous = app.session.target
         app.session.solver = solver
-        app.constraint_controls.rebuild(solver)
+        app.constraint_controls.rebuild(solver, writer)
         app.session.target = initial_target(solver, previous)
-        app.writer.post(NewModel(solver, app.session.target))
-        show_model_text(app, arm_kind(app.solver).model_text(app.solver))
-        app.panel.checkpoint.value = app._current_checkpoint_label()
-        app.panel.steps.max = solver.timesteps  # here too, not only on the loop's thread: show_steps reads it
+        writer.post(NewModel(solver, app.session.target))
+        writer.panel.model_text.content = arm_kind(solver).model_text(solver)
+        writer.panel.checkpoint.value = app._current_checkpoint_label()
+        writer.panel.steps.max = solver.timesteps  # here too, before NewModel is applied: show_steps reads it
         app.sampling.show_steps()  # the new model's T, when its sampler takes all steps
         # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
         same_kind_of_target = np.shape(previous) == np.shape(app.session.target)
         app.move_target(previous if same_kind_of_target else app.session.target)
-    return True
-
-
-def show_model_text(app, text: str) -> None:
-    """The Model folder's text, written by the drawing loop like every panel output; waits until it is."""
-    app.writer.post(Call(lambda writer: setattr(writer.panel.model_text, "content", text)))
-    app.writer.flush()

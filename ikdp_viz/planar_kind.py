@@ -124,7 +124,7 @@ class PlanarKind:
             trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0")
             others = Entry(Swatch(DARK, faint=FAINT), "the other samples")
         highlighted = Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown")
-        entries = [trail]
+        entries = [trail] if settings.show_trail or not settings.recording else []
         if constraint_colors:  # the arms are green or red then, the highlighted one in full (finding 10)
             entries += [
                 Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.holds_text),
@@ -133,6 +133,8 @@ class PlanarKind:
         else:
             entries += [highlighted, others]
         entries.append(Entry(Swatch(TIP_DARK, faint=TIP_FAINT), "tips: t = T → 0"))
+        if settings.recording:  # a static page: what it draws alone (no prior, no joint space)
+            return [*entries, *recorded_extras(settings, solved), Entry(Swatch(TARGET_RED, "cross"), "target")]
         entries += [
             Entry(Swatch(ESTIMATE), "x̂0 (show x̂0): the denoiser's guess of the final pose"),
             Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
@@ -145,3 +147,15 @@ class PlanarKind:
                 entries.append(Entry(Swatch(JOINT_SPACE_DOT, "cross"), "joint space: the final samples"))
             entries.append(Entry(Swatch(JOINT_SPACE_DOT, "dot"), "joint space: the samples at the step shown"))
         return entries
+
+
+def recorded_extras(settings, solved) -> list[Entry]:
+    """The legend's x̂0 and refined entries of a recording (record.py), only where the page draws them: x̂0 when
+    the settings show it, the refined poses when the solve was polished (a Panda page listed both, and the
+    prior, while drawing none of them)."""
+    entries = []
+    if settings.show_estimate:
+        entries.append(Entry(Swatch(ESTIMATE), "x̂0: the denoiser's guess of the final pose"))
+    if solved is not None and solved.view.refined:
+        entries.append(Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"))
+    return entries

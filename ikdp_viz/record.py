@@ -18,6 +18,7 @@ The viewer's "Share this denoising" button writes the solve on screen the same w
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,7 +65,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
     from ikdp_viz.clock import solve_noise_levels
     from ikdp_viz.frame import Palettes, build_frame
 
-    settings = ViewSettings() if settings is None else settings
+    settings = dataclasses.replace(ViewSettings() if settings is None else settings, recording=True)  # its legend
     if settings.seconds <= 0:
         raise ValueError(f"settings.seconds: expected a positive duration, got {settings.seconds}")
     solver, view, kind = solved.request.solver, solved.view, arm_kind(solved.request.solver)
@@ -110,10 +111,11 @@ def label_position(arm_view) -> tuple[float, float, float]:
 
 
 def with_legend(page: str, entries) -> str:
-    """`page` (viser's static client) with the legend in a box at its bottom left, and no notification toasts:
+    """`page` (viser's static client) with the legend in a box at its bottom left, above the playback bar (at the
+    page's foot it covered the bar's time field), and no notification toasts:
     a recording has nothing to notify, and the software-WebGL one covered the scene (finding 11)."""
     box = (
-        '<div id="ikdp-legend" style="position:fixed;left:12px;bottom:12px;z-index:1000;background:rgba(255,255,255,'
+        '<div id="ikdp-legend" style="position:fixed;left:12px;bottom:52px;z-index:1000;background:rgba(255,255,255,'
         '0.88);padding:6px 10px;border-radius:6px;font-family:sans-serif;max-width:340px">'
         + legend_html(list(entries)) + "</div>"
     )  # fmt: skip

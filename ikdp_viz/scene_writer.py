@@ -78,6 +78,8 @@ class SceneWriter:
         self.post, self.flush, self.close, self.on_loop_thread = (
             self.loop.post, self.loop.flush, self.loop.close, self.loop.on_thread
         )  # fmt: skip
+        # any thread: run(function) calls function(writer) on the loop's thread, the one writer of panel and scene
+        self.run = lambda function, wait=True: self.loop.run(Call(function), wait=wait)
         self._palettes = Palettes()
         self.output = PanelOutput(panel)
         # before any thread exists: the app's constructor is the only writer yet

@@ -3,14 +3,20 @@
 Starts the app in-process on a free local port, solves one target, opens the
 page in Debian's chromium (Playwright, software WebGL) and saves the picture
 once the final pose is drawn. Needs the test extras (playwright) and chromium.
+
+Each picture of the viewer (not the `--moments` series) carries a stamp (a PNG text chunk) of what its panel
+showed: the controls' labels, the chart's title, axes and series, and the legend. tests/test_viz_docs_images.py
+builds the same panel from the command the docs give and compares: a README picture of a chart or control that
+no longer exists fails there (issue 25, finding 15: docs/screenshot.png showed a removed chart).
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 
 from ikdp.shipped import DEFAULT_MODEL
@@ -33,6 +39,46 @@ COUNT_FRAMES = """(seconds) => new Promise((done) => {
 })"""
 # viser fades its canvas in with a CSS transition that software rendering advances slowly
 NO_FADE_CSS = "canvas { opacity: 1 !important; transition: none !important; }"
+STAMP_KEY = "ikdp-viewer-panel"  # the PNG text chunk of a picture's panel stamp
+
+
+def panel_stamp(panel) -> dict:
+    """What the panel shows apart from numbers: each control's label (the Panel's handles in order), the chart's
+    title, axes and series, the legend's HTML."""
+    labels = []
+
+    def walk(value) -> None:
+        if isinstance(getattr(value, "label", None), str):  # a viser handle (a dataclass too)
+            labels.append(value.label)
+        elif is_dataclass(value):  # the panel's groups: Panel, LearnControls, ...
+            for field in fields(value):
+                walk(getattr(value, field.name))
+
+    walk(panel)
+    plot = panel.plot
+    chart = {"title": plot.title, "axes": [axis.get("label") for axis in plot.axes or ()],
+             "series": [series.get("label") for series in plot.series or ()]}  # fmt: skip
+    return {"controls": labels, "chart": chart, "legend": panel.learn.legend.content}
+
+
+def stamp_png(path: Path, stamp: dict) -> None:
+    """Write `stamp` into the PNG at `path` (its text chunk STAMP_KEY), the picture unchanged."""
+    from PIL import Image, PngImagePlugin
+
+    with Image.open(path) as image:
+        image.load()
+    info = PngImagePlugin.PngInfo()
+    info.add_text(STAMP_KEY, json.dumps(stamp, ensure_ascii=False, sort_keys=True))
+    image.save(path, pnginfo=info)
+
+
+def read_stamp(path: Path) -> dict | None:
+    """The panel stamp of the PNG at `path`, or None when it has none (taken before stamps, or elsewhere)."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        text = image.info.get(STAMP_KEY)
+    return None if text is None else json.loads(text)
 
 
 def open_viewer_page(playwright, server, *, chromium: str, viewport: tuple[int, int]):
@@ -87,18 +133,10 @@ def screenshot_saved_page(page_path: Path, output: Path, *, chromium: str, size:
         browser.close()
 
 
-def main(argv: list[str] | None = None) -> None:
-    import tyro
-
-    args = tyro.cli(ScreenshotConfig, args=argv)
-    if args.saved_page is not None:
-        screenshot_saved_page(args.saved_page, args.output, chromium=args.chromium, size=args.size, wait=args.wait)
-        print(f"wrote {args.output}")
-        return
-
+def configured_app(args: ScreenshotConfig):
+    """(server, app): the viewer in-process on a free local port, set as `args` asks and solved (no browser)."""
     import torch
     import viser
-    from playwright.sync_api import sync_playwright
 
     import ikdp
     from ikdp.shipped import shipped_dir
@@ -133,7 +171,6 @@ def main(argv: list[str] | None = None) -> None:
         app.panel.refine_steps.value = args.refine_steps
         app.panel.refine.value = True
     constraints = app.constraint_controls
-    constrained = args.target_kind != "full pose" or args.obstacle is not None
     if args.target_kind != "full pose":
         if constraints.target_kind is None:
             raise ValueError(f"target_kind: {args.target_kind!r} needs a pose model, {args.ckpt} is not one")
@@ -146,6 +183,22 @@ def main(argv: list[str] | None = None) -> None:
         app.panel.timestep.value = args.timestep
     if args.prior:
         app.draw_prior()
+    return server, app
+
+
+def main(argv: list[str] | None = None) -> None:
+    import tyro
+
+    args = tyro.cli(ScreenshotConfig, args=argv)
+    if args.saved_page is not None:
+        screenshot_saved_page(args.saved_page, args.output, chromium=args.chromium, size=args.size, wait=args.wait)
+        print(f"wrote {args.output}")
+        return
+
+    from playwright.sync_api import sync_playwright
+
+    server, app = configured_app(args)
+    constrained = args.target_kind != "full pose" or args.obstacle is not None
     try:
         with sync_playwright() as playwright:
             browser, page = open_viewer_page(playwright, server, chromium=args.chromium, viewport=args.size)
@@ -171,6 +224,7 @@ def main(argv: list[str] | None = None) -> None:
             time.sleep(5.0)  # software WebGL: let a few frames render
             args.output.parent.mkdir(parents=True, exist_ok=True)
             page.screenshot(path=str(args.output))
+            stamp_png(args.output, panel_stamp(app.panel))
             browser.close()
     finally:
         app.close()

@@ -57,8 +57,8 @@ class Session:
         `chosen_steps`: the steps the user chose for a sampler that can skip some, which the panel's slider
         does not show while DDPM runs (it shows T); None reads the slider.
         """
-        if panel.new_seed.value:
-            panel.seed.value = random.randrange(2**31)  # shown, so a good draw can be kept
+        # a new seed each solve when the panel asks (the app has the loop show it)
+        seed = random.randrange(2**31) if panel.new_seed.value else int(panel.seed.value)
         sampler = str(panel.sampler.value)
         if sampler not in SAMPLERS:
             raise ValueError(f"sampler: expected one of {tuple(SAMPLERS)}, got {sampler!r}")
@@ -69,7 +69,7 @@ class Session:
             sampler=sampler,
             steps=int(panel.steps.value) if SAMPLERS[sampler].supports_steps else None,
             refine_steps=int(panel.refine_steps.value) if panel.refine.value else 0,
-            seed=int(panel.seed.value),
+            seed=seed,
             arrival=time.perf_counter() if arrival is None else arrival,
             animate=animate,
             **compare_settings(panel, sampler, chosen_steps),

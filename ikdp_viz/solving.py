@@ -18,7 +18,7 @@ import torch
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
-from ikdp_viz.constraint_scene import checkable, partial_target, state_violation
+from ikdp_viz.constraint_scene import checkable, final_violations, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 
@@ -60,6 +60,13 @@ class Solved:
     pull_missed: float | None = None  # "stay near": the best error of the pulled samples, which all missed the
     # target, so the solve shown is the one without the pull (issue 25, finding 1); None: the pull was kept or off
     preview_of: str | None = None  # a fast solve shown while the full one with this sampler runs (deliver 6)
+    final_violations: tuple = ()  # ((constraint name, (K,) violation at t = 0), ...) one per checked constraint:
+    # which one fails, for the readouts' "why none meets" (finding 4)
+
+    @property
+    def reaches(self) -> bool:
+        """Some returned pose reaches the target (within REACH_FRACTION of the arm's span)."""
+        return float(self.view.final_error.min()) <= REACH_FRACTION * self.request.solver.arm.span
 
 
 def preview_request(request: SolveRequest) -> SolveRequest | None:
@@ -155,6 +162,16 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
     # partial target, which the errors measure
     checked = tuple(item for item in request.constraints if item.name != NEAR_POSE)
     violation = state_violation(request.solver, checked, result) if checkable(checked) else None
+    final = final_violations(request.solver, checked, result) if violation is not None else ()
     return Solved(
-        request, view, trail, solve_seconds, compare, compare_trail, result.angles[0].numpy(), violation, pull_missed
+        request,
+        view,
+        trail,
+        solve_seconds,
+        compare,
+        compare_trail,
+        result.angles[0].numpy(),
+        violation,
+        pull_missed,
+        final_violations=final,
     )

@@ -331,3 +331,50 @@ def test_turning_follow_off_gives_the_highlight_back_to_best(app):
     controls.follow.value = False
     settle(app)
     assert app.panel.highlight.value == "best" and "kept by follow mode" not in app.panel.readout_text.content
+
+
+def test_a_robot_s_dropped_obstacle_stands_clear_of_the_robot_shown_toward_the_camera(tiny_chain_checkpoint):
+    """Finding 4 (issue 25): in 3-D the dropped sphere sat on the middle joint of the robot shown, inside its
+    opaque meshes, and could not be seen. It now stands in front of it: clear of every link, toward the camera."""
+    from ikdp_viz.camera import camera_fit_3d
+    from ikdp_viz.constraint_scene import LINK_CLEARANCE, segment_distances
+
+    with running_app(ikdp.load(tiny_chain_checkpoint), animation_seconds=0.0) as app:
+        settle(app)
+        controls, arm = app.constraint_controls, app.solver.arm
+        points = arm.forward_kinematics(torch.as_tensor(controls.last_pose, dtype=torch.float64)[None])[0].numpy()
+        controls.add_obstacle()
+        settle(app)
+        entry = controls.obstacles[0]
+        reach = float(arm.reach[1])
+        assert segment_distances(entry["position"], points).min() >= entry["radius"] + LINK_CLEARANCE * reach - 1e-9
+        camera = camera_fit_3d(arm.reach_center.double().numpy(), reach)[0]
+        middle = points[len(points) // 2]
+        assert np.linalg.norm(camera - entry["position"]) < np.linalg.norm(camera - middle)  # in front of it
+        assert np.allclose(entry["nodes"][1].position, entry["position"])  # its gizmo, and the sphere with it
+
+
+def test_a_robot_with_no_sample_meeting_the_constraints_says_why_in_the_main_readout():
+    """Finding 4 (issue 25): the Z1 read "Constraints hold for 0 of 16" with no hint why (the Constraints folder,
+    closed by default, had one line). Both readouts now name the failing constraint and what to do."""
+    from viz_helpers import shipped_solver_or_skip
+
+    with running_app(shipped_solver_or_skip("ikdp_z1"), animation_seconds=0.0) as app:
+        settle(app)
+        controls, arm = app.constraint_controls, app.solver.arm
+        points = arm.forward_kinematics(torch.as_tensor(controls.last_pose, dtype=torch.float64)[None])[0].numpy()
+        controls.add_obstacle(position=points[len(points) // 2], radius=0.08)  # on the middle joint, as it was
+        settle(app)
+        assert not holds(app.solved.state_violation[-1]).any()
+        readout = app.panel.readout_text.content
+        assert "**Constraints hold** for 0 of" in readout
+        assert "**no sample meets the constraints**: every sample touches an obstacle" in readout
+        assert "**no sample meets the constraints**: every sample touches an obstacle" in controls.readout.content
+        names = [name for name, _ in app.solved.final_violations]
+        assert names == ["obstacles"] and not holds(app.solved.final_violations[0][1]).any()
+        controls.clear_obstacles()
+        controls.lock_values[1].value = 60.0
+        controls.lock_boxes[1].value = True  # the shoulder held up: the hand cannot come down to the target
+        settle(app)
+        assert app.solved.view.final_error.min() > 0.05
+        assert "**no sample reaches the target with these locks**" in app.panel.readout_text.content

@@ -150,3 +150,75 @@ def test_a_robot_recording_labels_every_step_where_its_camera_sees_it(tiny_chain
     angle = np.degrees(np.arccos(forward @ toward / np.linalg.norm(forward) / np.linalg.norm(toward)))
     assert angle < 30.0  # inside viser's 75-degree field of view, with room for the label's text
     assert not [name for name in created(data, "FrameMessage") if name.startswith("/recording/")]
+
+
+def legend_texts(page: str) -> list[str]:
+    """The legend's lines laid over a recorded page, as plain text (record.with_legend)."""
+    from html import unescape
+
+    box = re.search(r'<div id="ikdp-legend".*?</div></div></div>', page, re.S).group(0)
+    lines = re.findall(r'<div style="margin:1px 0">(.*?)</div>', box)
+    return [unescape(re.sub(r"<span[^>]*>.*?</span>", "", line)) for line in lines]  # the swatch dropped
+
+
+def shown_nodes(data: dict) -> set[str]:
+    """The nodes a recording makes visible at some time (the others stay hidden or are never created)."""
+    return {message["name"] for _, message in data["messages"]
+            if message.get("type") == "SetSceneNodeVisibilityMessage" and message["visible"]}  # fmt: skip
+
+
+# a legend word -> the node that draws it, per arm (planar_view.py, robot_view.py, view_parts.py)
+PLANAR_LEGEND_NODES = {"x̂0": "/arm/estimate", "refined": "/arm/refined", "poses drawn from the prior": "/prior",
+                       "trail": "/arm/trail", "joint space": "/joint_space"}  # fmt: skip
+ROBOT_LEGEND_NODES = {"x̂0": "/samples/estimate", "refined": "/samples/refined", "poses drawn from the prior": "/prior",
+                      "trail": "/samples/trail"}  # fmt: skip
+
+
+def assert_legend_lists_what_is_drawn(page: str, nodes: dict[str, str]) -> list[str]:
+    texts, shown = legend_texts(page), shown_nodes(recording(page))
+    assert texts, "no legend"
+    for word, node in nodes.items():
+        listed = any(text.startswith(word) for text in texts)
+        drawn = any(name == node or name.startswith(node + "/") for name in shown)
+        assert listed == drawn, (word, texts, sorted(shown))
+    assert not [text for text in texts if "drag" in text or "click" in text or "(show" in text], texts
+    return texts
+
+
+@pytest.mark.parametrize("extras", [False, True], ids=["plain", "x0-and-refined"])
+def test_a_recorded_page_s_legend_lists_exactly_what_the_recording_draws(tiny_checkpoint, tiny_chain_checkpoint,
+                                                                          extras):  # fmt: skip
+    """Issue 25 (item 4 of the last round): a recorded Panda page listed x̂0, refined, the prior and "drag its
+    arrows and rings", none of which the page draws or lets anyone do; the planar page listed x̂0, refined and the
+    prior too. Each legend line now has its node drawn in the recording, and each of these nodes its line."""
+    import threading
+
+    from ikdp_viz.arm_kinds import arm_kind
+    from ikdp_viz.solving import SolveRequest, solve
+
+    settings = RecordSettings(seconds=1.0, show_estimate=extras)
+    for checkpoint, nodes in ((tiny_checkpoint, PLANAR_LEGEND_NODES), (tiny_chain_checkpoint, ROBOT_LEGEND_NODES)):
+        solver = ikdp.load(checkpoint)
+        request = SolveRequest(solver=solver, target=arm_kind(solver).initial_target(solver), num_samples=3,
+                               sampler="ddpm", steps=None, refine_steps=3 if extras else 0, seed=0, arrival=0.0,
+                               animate=False)  # fmt: skip
+        texts = assert_legend_lists_what_is_drawn(record_html(solve(request, threading.Event()), settings), nodes)
+        assert any(text.startswith("x̂0") for text in texts) == extras
+        assert any(text.startswith("refined") for text in texts) == extras
+        assert any(text.startswith("target") for text in texts)
+
+
+def test_the_shared_page_s_legend_drops_the_viewer_s_joint_space_and_prior(shared):
+    """The Share button's page: the viewer's legend lists the prior (and, with the view on, the joint space); the
+    page draws neither, so its legend does not list them."""
+    app, _, _ = shared
+    app.panel.joint_space.show.value = True
+    try:
+        settle(app)
+        assert any("joint space" in entry.text for entry in app.writer.frame.legend)  # the viewer's own lists it
+        _, page = app.share()
+    finally:
+        app.panel.joint_space.show.value = False
+        settle(app)
+    texts = assert_legend_lists_what_is_drawn(page, PLANAR_LEGEND_NODES)
+    assert "target" in texts
