@@ -30,6 +30,7 @@ from ikdp.checkpoint import read_checkpoint
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results"
+OPTIONS_REPORTED = ("hidden", "blocks", "batch", "prediction", "schedule", "lr", "dls_skip", "limit_aware_step")
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,7 @@ def main(config: MinutesConfig) -> dict:
             "steps": record["step"],
             "wall_minutes": record["seconds"] / 60,
             "cpu_minutes": record.get("cpu_seconds", math.nan) / 60,
-            "options": {name: record[name] for name in ("hidden", "blocks", "batch", "prediction", "schedule", "lr")},
+            "options": {name: record.get(name) for name in OPTIONS_REPORTED},  # None: not an option of that run
             "curve": curve(payload),
             **final_accuracy(path, config),
         }
