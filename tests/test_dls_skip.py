@@ -7,8 +7,8 @@ import ikdp
 from ikdp.denoisers import ChainFiLMDenoiser, DenoiserConfig
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.representation import AngleRepresentation
-from ikdp.schedule import ScheduleConfig
 from ikdp.robots import load_robot
+from ikdp.schedule import ScheduleConfig
 from ikdp.train import TrainConfig, train
 
 
@@ -61,8 +61,8 @@ def test_a_chain_denoiser_with_the_skip_needs_the_noise_levels(panda):
 
 
 def test_training_with_the_skip_records_it_and_loads_it(tmp_path):
-    config = TrainConfig(robot="panda", steps=6, batch=32, hidden=32, blocks=1, timesteps=8, eval_targets=8,
-                         save_every=100, output=str(tmp_path / "skip.pt"), log_dir=str(tmp_path / "tb"), threads=1)  # fmt: skip
+    sizes = dict(steps=6, batch=32, hidden=32, blocks=1, timesteps=8, eval_targets=8, save_every=100, threads=1)
+    config = TrainConfig(robot="panda", output=str(tmp_path / "skip.pt"), log_dir=str(tmp_path / "tb"), **sizes)
     solver = ikdp.load(train(config))  # the CPU robot recipe turns it on
     assert solver.model.config.denoiser.dls_skip
     assert solver.model.denoiser.step_gain.weight.abs().sum() > 0  # its change to the gain trained
@@ -96,10 +96,15 @@ def test_the_limit_aware_step_leaves_joints_a_limit_holds_and_misses_less_after_
     steps = {}
     for aware in (False, True):
         config = DenoiserConfig(kind="chain_film", hidden=32, blocks=1, limit_aware_step=aware)
-        steps[aware] = ChainFiLMDenoiser(config, representation, panda).features_and_step(representation.encode(start), targets)[1]
+        steps[aware] = ChainFiLMDenoiser(config, representation, panda).features_and_step(
+            representation.encode(start), targets
+        )[1]
     blocked = panda.blocked_by_limits(start, steps[False])
     assert blocked[:, 3].sum() > 50  # the plain step pushes many elbows out
     assert bool((steps[True][blocked] == 0).all())
     rows = blocked.any(-1)
-    miss = {aware: panda.tip_error(panda.normalize_joints(start + step)[:, None], targets[:, None])[rows, 0] for aware, step in steps.items()}
+    miss = {
+        aware: panda.tip_error(panda.normalize_joints(start + step)[:, None], targets[:, None])[rows, 0]
+        for aware, step in steps.items()
+    }
     assert miss[True].median() < 0.5 * miss[False].median()
