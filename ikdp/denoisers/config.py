@@ -16,8 +16,8 @@ class DenoiserConfig:
     # chain_film: the kinematic features and the loss's FK term at joint values past a limit as they are (True),
     # or clamped into the limits (False, the first Panda model's): a clamped joint gets no FK gradient
     kinematics_past_limits: bool = False
-    # chain_film: add the DLS step to the estimate through a gain learned per timestep and coordinate (zero at
-    # start), so the last steps can take a solver's step instead of relearning it from a feature among many
+    # chain_film: add the DLS step to the estimate through a gain per timestep and coordinate (starting at 1 at low
+    # noise, 0 at high, plus a learned change), so the last steps take a solver's step instead of relearning it
     dls_skip: bool = False
     # chain_film: where a joint on its limit would be pushed further out, the DLS step is solved without it (as the
     # refinement does), instead of a step the clamp undoes; samples stuck at a limit were most of the raw tail

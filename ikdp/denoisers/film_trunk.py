@@ -38,7 +38,7 @@ def film_residual_pass(h: torch.Tensor, rows, norms: nn.ModuleList, blocks: nn.M
     The caller unbinds the condition once: the backward of one unbind stacks the rows' gradients, where an
     index per block filled a zero tensor of the whole condition for each.
     """
-    for row, norm, block in zip(rows, norms, blocks, strict=False):
+    for row, norm, block in zip(rows, norms, blocks, strict=False):  # a chain denoiser's last row is not a block's
         scale, shift = row.unbind(1)
         h = h + block(nn.functional.silu(torch.addcmul(shift, norm(h), scale)))
     return h
