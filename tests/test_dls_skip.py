@@ -17,14 +17,14 @@ def panda():
     return load_robot("panda")
 
 
-def skip_model(arm) -> IKDiffusion:
+def skip_model(arm, **denoiser) -> IKDiffusion:
     torch.manual_seed(0)
     config = ModelConfig(
         lengths=(1.0,),
         representation="joints",
         prediction="sample",
         schedule=ScheduleConfig(timesteps=100, kind="karras"),
-        denoiser=DenoiserConfig(kind="chain_film", hidden=32, blocks=1, dls_skip=True),
+        denoiser=DenoiserConfig(kind="chain_film", hidden=32, blocks=1, dls_skip=True, **denoiser),
         arm=arm.to_config(),
     )
     return IKDiffusion(config)
@@ -35,6 +35,19 @@ def test_the_gain_starts_at_one_at_low_noise_and_zero_at_high_noise(panda):
     assert start.shape == (100,)
     assert start[0] > 0.99 and start[-1] < 0.01
     assert bool((start[1:] <= start[:-1]).all())  # falls as the noise rises
+
+
+def test_the_gains_start_follows_the_recorded_noise_level_where_it_is_one_half(panda):
+    for level in (0.1, 0.5):
+        model = skip_model(panda, dls_skip_noise=level)
+        sigma = model.schedule.noise_levels()
+        t = int((sigma - level).abs().argmin())
+        expected = 1 / (1 + (sigma[t] / level) ** 2)
+        assert abs(float(model.denoiser.step_gain_start[t]) - float(expected)) < 1e-6
+        assert 0.3 < float(model.denoiser.step_gain_start[t]) < 0.7
+        # what a checkpoint stores rebuilds the same start
+        rebuilt = IKDiffusion(ModelConfig.from_dict(model.config.to_dict()))
+        assert torch.equal(rebuilt.denoiser.step_gain_start, model.denoiser.step_gain_start)
 
 
 def test_a_fresh_model_takes_the_solvers_step_at_low_noise_and_shrinks_the_miss(panda):

@@ -9,7 +9,7 @@ a short reach. It predicts x_0 as x_t plus a correction (zero at start).
 
 With `dls_skip`, the DLS step also reaches the estimate directly, scaled by a gain per timestep
 and coordinate: x̂0 = x_t + g(t) * step + correction. The gain starts at 1 at low noise and 0 at
-high noise (DLS_SKIP_NOISE) and the network learns a change to it. Through the residual MLP alone
+high noise (`dls_skip_noise`) and the network learns a change to it. Through the residual MLP alone
 the step is one feature among many: after 8 minutes of CPU training, x̂0 at t = 0 removed 7 % of
 a 55 mm miss (xArm7). A gain learned from zero stayed at 0.3-0.9, because in training x_t at low
 noise is already within a hair of its pose and the step there teaches little; hence the start.
@@ -33,9 +33,6 @@ from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the arm's span
 MISS_SCALE = 10.0  # the position miss in tenths of the span: the last steps correct millimetres
-# dls_skip: the noise level (in x units, 1 = half a joint's range) at which the DLS step's gain starts at 1/2;
-# on the xArm7 after 1,000 CPU steps: 41 mm with this start, 57 mm with a gain of 1 at every t, 126 mm from 0
-DLS_SKIP_NOISE = 0.1
 
 
 class ChainFiLMDenoiser(nn.Module):
@@ -77,7 +74,7 @@ class ChainFiLMDenoiser(nn.Module):
                 raise ValueError("denoiser 'chain_film': dls_skip needs the schedule's noise levels")
             # the gain's start: 1 where the noise is small against the scale on which the arm looks
             # linear (there the mean clean pose is x_t moved onto the solutions, a DLS step), 0 where large
-            start = 1 / (1 + (noise_levels.double() / DLS_SKIP_NOISE) ** 2)
+            start = 1 / (1 + (noise_levels.double() / config.dls_skip_noise) ** 2)
             self.register_buffer("step_gain_start", start.float(), persistent=False)
 
     def condition(self, t: torch.Tensor, target: torch.Tensor) -> torch.Tensor:

@@ -19,6 +19,10 @@ class DenoiserConfig:
     # chain_film: add the DLS step to the estimate through a gain per timestep and coordinate (starting at 1 at low
     # noise, 0 at high, plus a learned change), so the last steps take a solver's step instead of relearning it
     dls_skip: bool = False
+    # the noise level (x units: 1 = half a joint's range) where that gain starts at 1/2; kept in the checkpoint, so
+    # a model keeps the start it was trained with (xArm7 at step 1,000: 41 mm with 0.1, 57 mm with a gain of 1 at
+    # every t, 126 mm from a gain of 0)
+    dls_skip_noise: float = 0.1
     # chain_film: where a joint on its limit would be pushed further out, the DLS step is solved without it (as the
     # refinement does), instead of a step the clamp undoes; samples stuck at a limit were most of the raw tail
     limit_aware_step: bool = False
