@@ -70,7 +70,8 @@ def unmet_reasons(solved, *, reaches: bool | None = None) -> list[str]:
                 who = "every sample" if failing == count else f"{failing} of {count} samples"
                 why.append(f"{who} {failure}: {remedy}")
         if not why and "obstacles" in names:  # no per-constraint split (an older solve): the obstacle is the one
-            why.append("every one touches an obstacle: move it, or make it smaller")
+            failure, remedy = FAILING_WORDS["obstacles"]
+            why.append(f"every one {failure}: {remedy}")
         lines.append(f"**no sample meets the constraints**: {'; '.join(why) or 'try more samples (K)'}")
     if not reaches and "locked_joints" in names:
         lines.append("**no sample reaches the target with these locks**: the locked joints keep the hand from it; "

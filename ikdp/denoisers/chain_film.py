@@ -99,12 +99,9 @@ class ChainFiLMDenoiser(nn.Module):
             feature_row[:, 0, 1, : gain.shape[1]] = gain
         return torch.cat((scale_and_shift(film), feature_row), dim=1)
 
-    def features(self, x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """(M, D) noisy sample, (M, target_dim) target -> (M, F): x_t, the task error, the DLS step."""
-        return self.features_and_step(x, target)[0]
-
     def features_and_step(self, x: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """features(), and the DLS step in radians per joint, (M, J)."""
+        """(M, D) noisy sample, (M, target_dim) target -> the input features (M, F): x_t, the task error and the
+        DLS step in x units; and that step in radians per joint, (M, J), for the skip."""
         joints = self.representation.decode(x, clamp=not self.config.kinematics_past_limits)
         error = self.arm.task_error(joints, target)  # (M, E)
         jacobian = self.arm.jacobian(joints)
