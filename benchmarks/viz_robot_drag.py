@@ -1,7 +1,13 @@
-"""A robot's drag: time from a target change to the first new frame on screen (issue 25, deliver 6).
+"""A robot's drag: time from a target change to the first new frame on screen (issue 25 deliver 6, issue 27 deliver 3).
 
     python -m benchmarks.viz_robot_drag                  # ikdp_panda, 30 moves, one torch thread
     python -m benchmarks.viz_robot_drag --moves 5        # a smoke run
+    python -m benchmarks.viz_robot_drag --setups         # with its student: every setup below in one run
+
+`--setups` measures, in one process on the same moves, the viewer as it opens the Panda
+(`student`: its distilled few-step student as the sampler, drag updates and released moves that
+animate) beside the teacher's DDPM with the student's preview, with the DPM-Solver++(2M)-5 preview
+of a model without a student, and with no preview.
 
 The Panda viewer as a user meets it (K = 16, DDPM, all 100 steps), the solve on one CPU
 thread. Each move is a drag update (the gizmo's "update" phase, not animated) 3 cm from the
@@ -29,20 +35,25 @@ import viser
 
 import ikdp
 from ikdp.evaluation.machine import cpu_model
-from ikdp.shipped import shipped_checkpoint
+from ikdp.shipped import shipped_checkpoint, shipped_dir
 from ikdp_viz.app import VizApp
+from ikdp_viz.student import STUDENT, find_student
 
 RESULTS = Path(__file__).resolve().parent / "results" / "viz_robot_drag.json"
 
 
-def measure(moves: int, *, previews: bool | None) -> dict:
+def measure(moves: int, *, previews: bool | None, student=None, sampler: str | None = None, drag: bool = True) -> dict:
     """Per move: ms to the first frame drawn and to the full solve drawn."""
     torch.set_num_threads(1)
     solver = ikdp.load(shipped_checkpoint("ikdp_panda"))
     with contextlib.redirect_stdout(io.StringIO()):
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     options = {} if previews is None else {"previews": previews}
+    if student is not None:  # an older checkout's VizApp takes no student
+        options["student"] = student
     app = VizApp(server, solver, animation_seconds=0.0, **options)
+    if sampler is not None:
+        app.panel.sampler.value = sampler
     try:
         assert app.wait_until_still(120), "the first solve did not finish"
         start = np.array(app.target, dtype=np.float64)
@@ -51,7 +62,7 @@ def measure(moves: int, *, previews: bool | None) -> dict:
             target = start.copy()
             target[:3] += 0.03 * np.array([np.cos(index), np.sin(index), 0.0])  # 3 cm around the first target
             arrival = time.perf_counter()
-            app.move_target(target, arrival=arrival, from_gizmo=True, dragging=True)
+            app.move_target(target, arrival=arrival, from_gizmo=True, dragging=drag)
             assert app.wait_until_still(120), "a solve did not finish"
             drawn = sorted(when for came, when, _ in app.latencies if came == arrival)
             first.append(1000 * (drawn[0] - arrival))
@@ -68,22 +79,43 @@ def summary(values: list[float]) -> dict[str, float]:
     return {"median": float(np.median(array)), "p95": float(np.percentile(array, 95)), "max": float(array.max())}
 
 
+def setups(moves: int) -> dict[str, dict]:
+    """Every setup of `--setups`, in one run: label -> measure()'s lists."""
+    student = find_student(ikdp.load(shipped_checkpoint("ikdp_panda")), shipped_dir())
+    if student is None:
+        raise SystemExit("viz_robot_drag: no shipped student of ikdp_panda (checkpoints/*.pt with its distill record)")
+    return {
+        "student, drag updates": measure(moves, previews=None, student=student, sampler=STUDENT),
+        "student, released moves (animated)": measure(
+            moves, previews=None, student=student, sampler=STUDENT, drag=False
+        ),  # fmt: skip
+        "teacher DDPM-100 + the student's preview": measure(moves, previews=None, student=student, sampler="ddpm"),
+        "teacher DDPM-100 + DPM-Solver++(2M)-5 preview (no student)": measure(moves, previews=None, sampler="ddpm"),
+        "teacher DDPM-100, no preview": measure(moves, previews=False, sampler="ddpm"),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--moves", type=int, default=30)
     parser.add_argument("--label", default="this checkout")
     parser.add_argument("--no-previews", action="store_true", help="the full solve alone (this checkout's switch)")
+    parser.add_argument("--setups", action="store_true", help="the student and the teacher's setups, one run")
     args = parser.parse_args()
-    result = measure(args.moves, previews=False if args.no_previews else None)
-    row = {name: summary(values) for name, values in result.items()}
-    print(f"{args.label}: Panda drag, K = 16, DDPM-100, one torch thread, {args.moves} moves ({cpu_model()})")
-    print("| | median ms | p95 ms | max ms |")
-    print("|---|---|---|---|")
-    for name, stats in row.items():
-        print(f"| {name} | {stats['median']:.0f} | {stats['p95']:.0f} | {stats['max']:.0f} |")
+    if args.setups:
+        results = setups(args.moves)
+    else:
+        results = {args.label: measure(args.moves, previews=False if args.no_previews else None)}
+    print(f"Panda drag, K = 16, one torch thread, {args.moves} moves ({cpu_model()})")
+    print("| setup | first frame median / p95 ms | full solve median / p95 ms |")
+    print("|---|---|---|")
     runs = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    runs[args.label] = {**row, "moves": args.moves, "cpu": cpu_model(), "python": platform.python_version(),
-                        "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    for label, result in results.items():
+        row = {name: summary(values) for name, values in result.items()}
+        first, full = row["first_frame_ms"], row["full_solve_ms"]
+        print(f"| {label} | {first['median']:.0f} / {first['p95']:.0f} | {full['median']:.0f} / {full['p95']:.0f} |")
+        runs[label] = {**row, "moves": args.moves, "cpu": cpu_model(), "python": platform.python_version(),
+                       "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(runs, indent=2) + "\n")
 

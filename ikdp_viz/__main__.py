@@ -42,7 +42,9 @@ class VizConfig:
     # or W X Y Z (a pose model given X Y Z keeps its first rotation); to open on what you saw, for a bug report
     target: tuple[float, ...] | None = None
     samples: int = 16  # samples K, 1 to 64
-    sampler: str | None = None  # one of ikdp.samplers.SAMPLERS: ddpm, ddim, dpmpp2m (None: ddpm)
+    # ddpm, ddim, dpmpp2m, or student: the model's distilled few-step student beside it in checkpoints/ (None: the
+    # student for a robot that has one, else ddpm)
+    sampler: str | None = None
     steps: int | None = None  # reverse steps of a sampler that can skip some, not ddpm (None: 20; 10 for a robot)
     seed: int = 0  # sampling seed
     refine_steps: int = 0  # damped-least-squares steps after sampling; 0: none
@@ -58,9 +60,10 @@ def check_settings(config: VizConfig) -> None:
     """Exit 2 with one line for a sampling setting the panel cannot show."""
     from ikdp.samplers import SAMPLERS
     from ikdp_viz.panel import MAX_SAMPLES
+    from ikdp_viz.student import STUDENT
 
-    if config.sampler is not None and config.sampler not in SAMPLERS:
-        fail(f"--sampler {config.sampler}: expected one of {', '.join(SAMPLERS)}")
+    if config.sampler is not None and config.sampler not in (*SAMPLERS, STUDENT):
+        fail(f"--sampler {config.sampler}: expected one of {', '.join((*SAMPLERS, STUDENT))}")
     for name, value, low, high in (
         ("samples", config.samples, 1, MAX_SAMPLES),
         ("steps", 1 if config.steps is None else config.steps, 1, 10_000),
@@ -74,9 +77,14 @@ def check_settings(config: VizConfig) -> None:
 def apply_settings(app, config: VizConfig) -> None:
     """Set the panel as the flags ask, then solve the first target."""
     from ikdp_viz.arm_kinds import arm_kind
+    from ikdp_viz.student import STUDENT
 
-    panel = app.panel
-    default_sampler, default_steps = arm_kind(app.solver).default_sampler
+    panel, kind = app.panel, arm_kind(app.solver)
+    default_sampler, default_steps = kind.default_sampler
+    if app.session.student is not None and kind.opens_on_student:
+        default_sampler = STUDENT
+    if config.sampler == STUDENT and app.session.student is None:
+        fail(f"--sampler student: no distilled student of {app.solver.metadata['path']} among the shipped models")
     panel.samples.value = config.samples
     panel.sampler.value = config.sampler or default_sampler
     panel.steps.value = min(default_steps if config.steps is None else config.steps, panel.steps.max)

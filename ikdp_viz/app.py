@@ -50,6 +50,7 @@ from ikdp_viz.scene_writer import SceneWriter
 from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
+from ikdp_viz.student import find_student
 from ikdp_viz.typed_target import target_from_numbers
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
@@ -72,9 +73,11 @@ class VizApp:
         animation_seconds: float = DEFAULT_DURATION,
         wait_for_tab: bool = False,
         previews: bool = True,
+        student: ikdp.Solver | None = None,
     ):
+        """`student`: the model's few-step student (student.py); None: looked for in `checkpoint_folder`."""
         self.server = server
-        self.session = Session(solver, target)
+        self.session = Session(solver, target, student or find_student(solver, checkpoint_folder))
         given = Path(solver.metadata.get("path", "model.pt"))
         # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
         # planar session could not open)
@@ -89,12 +92,13 @@ class VizApp:
         )  # fmt: skip
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
-        self.sampling = SamplingControls(self.panel, lambda: self.request_solve())
+        self.sampling = SamplingControls(self.panel, lambda: self.request_solve(), self.session)
         self.constraint_controls = ConstraintControls(server, solver, self.writer.run, self.request_solve)
         # on the drawing loop's thread: follow mode picks the highlighted sample before the frame that shows it
         self.writer.after_solve = lambda solved: self.constraint_controls.after_solve(solved, self.panel, self.writer)
         self.downloads = Downloads(self.writer, self.panel)
         self._wire_panel()
+        self.sampling.offer_student()
         self.sampling.show_steps()
         server.on_client_connect(self._on_connect)
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
@@ -224,6 +228,7 @@ class VizApp:
         panel.learn.compare.on_update(lambda _: self.request_solve())
         panel.samples.on_update(self._on_loop(self.sampling.on_samples))
         panel.sampler.on_update(self._on_loop(self.sampling.on_sampler))
+        panel.teacher_student.on_click(self._on_loop(self.sampling.on_switch))
         panel.steps.on_update(self._on_loop(self.sampling.on_steps))
         panel.refine_steps.on_update(lambda _: self.request_solve())
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())

@@ -52,6 +52,9 @@ class ChainKind:
     # error is 9.8 mm / 3.0 deg against DPM-Solver++(2M)-10's 24.4 mm / 8.6 deg, for 210 ms a solve instead of
     # 12 (benchmarks/viz_robot_settings.py); the steps apply when the user picks a sampler that skips some.
     default_sampler = ("ddpm", 10)
+    # A robot's model with a distilled student opens on it (issue 27, deliver 3): a new target's first frame after
+    # a few network evaluations, the teacher's full DDPM one click away (student.py)
+    opens_on_student = True
     chart_error, chart_unit, chart_scale = "hand position error", "mm", 1000.0  # view.tip_error is in metres
     holds_text = "constraints hold at the step shown"
     violates_text = "constraints fail at the step shown (those see-through robots denser)"
@@ -160,7 +163,7 @@ class ChainKind:
     def solve_text(self, solved, state: int, highlight: int, reason: str, error: str | None) -> str:
         request = solved.request
         text = chain_readouts.chain_solve_text(
-            solved.view, state, highlight, sampler=request.sampler, seed=request.seed,
+            solved.view, state, highlight, sampler=request.sampler_label, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, reason=reason,
         )  # fmt: skip
         return text + (f"  \n**Newest solve failed** {error}" if error else "")

@@ -26,11 +26,6 @@ from ikdp_viz.scene import (
 )
 
 GAP = 0.35  # between the two workspaces, in reach radii
-DETERMINISTIC = {"ddim": "DDIM (deterministic ODE)", "dpmpp2m": "DPM-Solver++(2M) (deterministic ODE)"}
-
-
-def sampler_title(name: str, steps: int) -> str:
-    return f"{DETERMINISTIC.get(name, name.upper() + ' (stochastic)')}, {steps} steps"
 
 
 def offset(reach: float) -> float:
@@ -74,9 +69,9 @@ class CompareNodes:
             self._trail_colors = trail_colors(ramp, compare.num_links)
             self._solved_id = key
             request = solved.request
-            self.nodes["title"].text = sampler_title(request.compare_sampler, compare.num_states - 1)
+            self.nodes["title"].text = request.compare_title(compare.num_states - 1)
             main_steps = solved.view.num_states - 1
-            self.nodes["main_title"].text = sampler_title(request.sampler, main_steps) + ": same x_T"
+            self.nodes["main_title"].text = request.title(main_steps) + ": same x_T"
             target, cross = solved.view.target, self.nodes["cross"]
             cross.position = (float(target[0]) + offset(reach), float(target[1]), float(cross.position[2]))
         shown = nearest_state(compare.labels, float(solved.view.labels[state]))

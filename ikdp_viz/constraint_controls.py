@@ -238,7 +238,7 @@ class ConstraintControls:
         """Drawing loop's thread, as a solve goes on screen: keep the pose (follow: the nearest sample that
         reaches, highlighted), write the readouts."""
         writer.followed = bool(self.follow.value)
-        if solved.final_angles is not None and solved.request.solver is self.solver:  # not a replaced model's
+        if solved.final_angles is not None and solved.request.model is self.solver:  # not a replaced model's
             self._after_solve(solved, panel)
             self._draw_overlay(solved)
 

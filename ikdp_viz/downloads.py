@@ -36,7 +36,7 @@ def export_picture(solved, settings, solver):
         if entry.text.split()[0] in PICTURE_WORDS
     ]
     legend.append(Entry(Swatch(TARGET_RED, "cross"), "target"))  # fmt: skip
-    title = (f"IKDP {request.sampler}, K = {view.num_samples}, seed {request.seed}: "
+    title = (f"IKDP {request.sampler_label}, K = {view.num_samples}, seed {request.seed}: "
              f"{kind.target_words(request.target)}")  # fmt: skip
     return drawing(
         solved, polylines, target, circle=circle, highlight=highlight, trail_of=settings.trail_of,

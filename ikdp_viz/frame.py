@@ -118,7 +118,7 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     light = animating_to is not None and state < animating_to
     text = kind.solve_text(solved, state, highlight, highlight_reason(settings, highlight, solved), error)
     if solved.preview_of is not None:  # say which is shown (deliver 6)
-        text = (f"**Fast preview** ({solved.request.sampler}, {view.num_states - 1} steps) while the "
+        text = (f"**Fast preview** ({solved.request.sampler_label}, {view.num_states - 1} steps) while the "
                 f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)

@@ -15,6 +15,7 @@ from ikdp.checkpoint import read_checkpoint
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.messages import NewModel
 from ikdp_viz.session import initial_target
+from ikdp_viz.student import find_student
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
@@ -102,15 +103,18 @@ def switch_model(app, path: Path) -> bool:
     if arm_kind(solver) is not arm_kind(app.solver):  # the drawing loop draws one kind of arm
         return refused(f"{path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
                        f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}")  # fmt: skip
-    app.writer.run(lambda writer: adopt_model(app, writer, solver))
+    student = find_student(solver, app.models.folder)  # read here, not on the drawing loop
+    app.writer.run(lambda writer: adopt_model(app, writer, solver, student))
     return True
 
 
-def adopt_model(app, writer, solver) -> None:
-    """Drawing loop's thread: `solver` becomes the app's model; the old target is asked again in its workspace."""
+def adopt_model(app, writer, solver, student=None) -> None:
+    """Drawing loop's thread: `solver` (with its few-step `student`, or None) becomes the app's model; the old
+    target is asked again in its workspace."""
     with app.session.lock:
         previous = app.session.target
-        app.session.solver = solver
+        app.session.solver, app.session.student = solver, student
+        app.sampling.offer_student()
         app.constraint_controls.rebuild(solver, writer)
         app.session.target = initial_target(solver, previous)
         writer.post(NewModel(solver, app.session.target))

@@ -85,6 +85,7 @@ class Panel:
     samples: viser.GuiSliderHandle
     highlight: viser.GuiDropdownHandle
     sampler: viser.GuiDropdownHandle
+    teacher_student: viser.GuiButtonHandle  # the student's few steps <-> the teacher's full DDPM (student.py)
     steps: viser.GuiSliderHandle
     seed: viser.GuiNumberHandle
     new_seed: viser.GuiCheckboxHandle
@@ -149,7 +150,12 @@ def build_panel(
             "highlight", highlight_options(DEFAULT_SAMPLES), initial_value="best",
             hint="best: the smallest tip error at t = 0 (of the refined pose when refine is on); samples count from 1",
         )  # fmt: skip
-        sampler = gui.add_dropdown("sampler", sampler_names, initial_value=sampler_names[0])
+        sampler = gui.add_dropdown(
+            "sampler", sampler_names, initial_value=sampler_names[0],
+            hint="student: the model's few-step student (distilled); ddpm: the paper's full denoising, all T steps; "
+            "ddim, dpmpp2m: fewer steps of the same model",
+        )  # fmt: skip
+        teacher_student = gui.add_button("Show the teacher's full denoising", icon=viser.Icon.SCHOOL, visible=False)
         compare = build_compare(gui)
         steps = gui.add_slider(
             "steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_STEPS, num_timesteps),
@@ -196,6 +202,6 @@ def build_panel(
     learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs, compare)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
-        prior_button, play_on_move, samples, highlight, sampler, steps, seed, new_seed, refine, refine_steps,
-        readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn,
+        prior_button, play_on_move, samples, highlight, sampler, teacher_student, steps, seed, new_seed, refine,
+        refine_steps, readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn,
     )  # fmt: skip

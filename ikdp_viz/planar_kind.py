@@ -37,6 +37,7 @@ class PlanarKind:
 
     name = "planar"
     default_sampler = ("ddpm", 20)  # the paper's sampler; the steps apply if the user picks one that skips
+    opens_on_student = False  # the paper's figure first; a planar DDPM solve takes milliseconds anyway
     chart_error, chart_unit, chart_scale = "tip error", "bone lengths", 1.0  # the chart's y: view.tip_error * scale
     holds_text = "constraints hold at the step shown (the others lighter)"
     violates_text = "constraints fail at the step shown"
@@ -111,7 +112,7 @@ class PlanarKind:
     def solve_text(self, solved, state: int, highlight: int, reason: str, error: str | None) -> str:
         request = solved.request
         return readouts.solve_text(
-            solved.view, state, highlight, sampler=request.sampler, seed=request.seed,
+            solved.view, state, highlight, sampler=request.sampler_label, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, error=error, reason=reason,
         )  # fmt: skip
 

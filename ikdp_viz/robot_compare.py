@@ -12,7 +12,6 @@ import numpy as np
 
 from ikdp_viz.camera import camera_fit_3d
 from ikdp_viz.chain_scene import skeleton_segments
-from ikdp_viz.compare import sampler_title
 from ikdp_viz.robot_view import SKELETON_PIXELS
 from ikdp_viz.scene import nearest_state
 
@@ -54,8 +53,8 @@ class RobotCompareNodes:
         per_joint = np.repeat(lines, compare.num_joints, axis=0)[:, None]
         self.nodes["skeletons"].colors = np.broadcast_to(per_joint, (len(segments), 2, 3))
         request = solved.request
-        self.nodes["title"].text = sampler_title(request.compare_sampler, compare.num_states - 1)
-        self.nodes["main_title"].text = sampler_title(request.sampler, solved.view.num_states - 1) + ": same x_T"
+        self.nodes["title"].text = request.compare_title(compare.num_states - 1)
+        self.nodes["main_title"].text = request.title(solved.view.num_states - 1) + ": same x_T"
 
     def _build(self, solved, reach: float) -> None:
         scene = self.server.scene

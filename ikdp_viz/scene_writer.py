@@ -145,7 +145,7 @@ class SceneWriter:
 
     def _show_solve(self, message: ShowSolve) -> None:
         solved = message.solved
-        if solved.request.solver is not self.solver:
+        if solved.request.model is not self.solver:
             return  # a solve of the model that was replaced
         self.animation, self._unseen = None, False
         self.solved, self.error = solved, None

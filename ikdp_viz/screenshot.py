@@ -49,7 +49,8 @@ def panel_stamp(panel) -> dict:
 
     def walk(value) -> None:
         if isinstance(getattr(value, "label", None), str):  # a viser handle (a dataclass too)
-            labels.append(value.label)
+            if getattr(value, "visible", True):  # a hidden control is not in the picture
+                labels.append(value.label)
         elif is_dataclass(value):  # the panel's groups: Panel, LearnControls, ...
             for field in fields(value):
                 walk(getattr(value, field.name))

@@ -18,6 +18,7 @@ from ikdp.samplers import SAMPLERS
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.panel import Panel
 from ikdp_viz.solving import SolveRequest
+from ikdp_viz.student import STUDENT, student_sampling
 
 
 def initial_target(solver: ikdp.Solver, target=None) -> np.ndarray:
@@ -28,9 +29,10 @@ def initial_target(solver: ikdp.Solver, target=None) -> np.ndarray:
 class Session:
     """The model and the target; `lock` is held while either changes and its consequences are posted."""
 
-    def __init__(self, solver: ikdp.Solver, target=None):
+    def __init__(self, solver: ikdp.Solver, target=None, student: ikdp.Solver | None = None):
         self.lock = threading.RLock()
         self.solver = solver  # the model the newest requests use
+        self.student = student  # its few-step student, the sampler "student" (student.py); None: none here
         self.target = initial_target(solver, target)  # planar (2,), chain pose (7,); inside the workspace
         self.target_clamped = False  # the point asked for lay outside the workspace
 
@@ -59,32 +61,41 @@ class Session:
         """
         # a new seed each solve when the panel asks (the app has the loop show it)
         seed = random.randrange(2**31) if panel.new_seed.value else int(panel.seed.value)
-        sampler = str(panel.sampler.value)
-        if sampler not in SAMPLERS:
-            raise ValueError(f"sampler: expected one of {tuple(SAMPLERS)}, got {sampler!r}")
+        choice = str(panel.sampler.value)
+        solver, sampler, steps = self.sampling(choice, int(panel.steps.value))
         return SolveRequest(
-            solver=self.solver,
+            solver=solver,
             target=self.target.copy(),
             num_samples=int(panel.samples.value),
             sampler=sampler,
-            steps=int(panel.steps.value) if SAMPLERS[sampler].supports_steps else None,
+            steps=steps,
             refine_steps=int(panel.refine_steps.value) if panel.refine.value else 0,
             seed=seed,
             arrival=time.perf_counter() if arrival is None else arrival,
             animate=animate,
-            **compare_settings(panel, sampler, chosen_steps),
+            **self.compare_settings(panel, choice, chosen_steps),
             constraints=tuple(constraints),
+            student=self.student,
+            teacher=None if solver is self.solver else self.solver,
         )
 
+    def sampling(self, choice: str, steps: int | None) -> tuple[ikdp.Solver, str, int | None]:
+        """The dropdown's `choice` as (model, sampler, steps): the student's own few steps, or the model's sampler
+        with `steps` where it can skip some (None: all T)."""
+        if choice == STUDENT and self.student is not None:
+            return (self.student, *student_sampling(self.student))
+        if choice not in SAMPLERS:
+            raise ValueError(f"sampler: expected one of {tuple(SAMPLERS)}, got {choice!r}")
+        return self.solver, choice, steps if SAMPLERS[choice].supports_steps else None
 
-def compare_settings(panel: Panel, sampler: str, chosen_steps: int | None = None) -> dict:
-    """The comparison the panel asks for: another sampler from the same x_T, unless it is the sampler itself."""
-    other = str(panel.learn.compare.value)
-    if other == "off" or other == sampler or other not in SAMPLERS:
-        return {}
-    return {
-        "compare_sampler": other,
-        "compare_steps": (int(panel.steps.value) if chosen_steps is None else chosen_steps)
-        if SAMPLERS[other].supports_steps
-        else None,
-    }
+    def compare_settings(self, panel: Panel, choice: str, chosen_steps: int | None = None) -> dict:
+        """The comparison the panel asks for: another sampler (or the student, or from it the teacher) from the
+        same x_T, unless it is the sampler itself."""
+        other = str(panel.learn.compare.value)
+        if other == "off" or other == choice or (other not in SAMPLERS and other != STUDENT):
+            return {}
+        if other == STUDENT and self.student is None:
+            return {}
+        steps = int(panel.steps.value) if chosen_steps is None else chosen_steps
+        solver, sampler, steps = self.sampling(other, steps)
+        return {"compare_sampler": sampler, "compare_steps": steps, "compare_solver": solver}

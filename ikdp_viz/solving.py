@@ -21,6 +21,7 @@ from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import checkable, final_violations, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
+from ikdp_viz.student import sampler_label, solve_title, student_sampling
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
 PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first (deliver 6): 5 steps, about 40 ms here
@@ -44,6 +45,30 @@ class SolveRequest:
     compare_sampler: str | None = None  # also solve with this sampler from the same x_T (compare.py); None: not
     compare_steps: int | None = None  # its number of steps (None: all T)
     constraints: tuple = ()  # ikdp constraints from the Constraints panel (constraint_controls.py)
+    compare_solver: ikdp.Solver | None = None  # the model the comparison runs (student.py); None: `solver`
+    student: ikdp.Solver | None = None  # the few-step student in sight (student.py): a drag's preview runs it
+    teacher: ikdp.Solver | None = None  # the session's model when `solver` is its student; None: `solver` is it
+
+    @property
+    def model(self) -> ikdp.Solver:
+        """The session's model this solve belongs to (a solve of a replaced model is not drawn)."""
+        return self.solver if self.teacher is None else self.teacher
+
+    @property
+    def compared_by(self) -> ikdp.Solver:
+        return self.solver if self.compare_solver is None else self.compare_solver
+
+    def title(self, steps: int) -> str:
+        """The label over this solve's arms: its sampler in `steps` steps, and whose network, with a student."""
+        return solve_title(self.solver, self.student, self.sampler, steps)
+
+    def compare_title(self, steps: int) -> str:
+        return solve_title(self.compared_by, self.student, str(self.compare_sampler), steps)
+
+    @property
+    def sampler_label(self) -> str:
+        """The sampler as the readouts name it ("student's ddim" with a student in sight)."""
+        return sampler_label(self.solver, self.student, self.sampler)
 
 
 @dataclass(frozen=True)
@@ -71,15 +96,22 @@ class Solved:
 
 def preview_request(request: SolveRequest) -> SolveRequest | None:
     """A fast solve to show first while `request` runs, or None: during a robot's drag (not animated), when the
-    sampler takes many steps. DPM-Solver++(2M) in 5 steps: in 10, a Panda solve took 12 ms unloaded
-    (benchmarks/viz_robot_settings.py) but 73 ms on a shared 2-core machine, against DDPM's 120-740 ms; so the
-    arm follows the gizmo at once (issue 25, deliver 6; benchmarks/viz_robot_drag.py)."""
-    sampler, steps = PREVIEW_SAMPLER
-    if request.animate or request.solver.arm.kind == "planar" or request.sampler == sampler:
+    sampler takes many steps. The model's few-step student where there is one (issue 27, deliver 3), else
+    DPM-Solver++(2M) in 5 steps: in 10, a Panda solve took 12 ms unloaded (benchmarks/viz_robot_settings.py) but
+    73 ms on a shared 2-core machine, against DDPM's 120-740 ms; so the arm follows the gizmo at once (issue 25,
+    deliver 6; benchmarks/viz_robot_drag.py)."""
+    solver, (sampler, steps) = request.solver, PREVIEW_SAMPLER
+    if request.student is not None:
+        solver, (sampler, steps) = request.student, student_sampling(request.student)
+    if request.animate or request.solver.arm.kind == "planar" or request.solver is request.student:
         return None
-    if (request.steps or request.solver.timesteps) <= steps:
+    same_model_and_sampler = solver is request.solver and request.sampler == sampler
+    if same_model_and_sampler or (request.steps or request.solver.timesteps) <= steps:
         return None
-    return dataclasses.replace(request, sampler=sampler, steps=steps, compare_sampler=None, compare_steps=None)
+    return dataclasses.replace(
+        request, solver=solver, sampler=sampler, steps=steps, compare_sampler=None, compare_steps=None,
+        compare_solver=None, teacher=request.model if solver is not request.solver else request.teacher,
+    )  # fmt: skip
 
 
 def landing_error(result) -> float:
@@ -107,7 +139,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
         raise Cancelled
     fast = None if preview is None else preview_request(request)
     if fast is not None:
-        preview(dataclasses.replace(solve(fast, cancel), preview_of=request.sampler))
+        preview(dataclasses.replace(solve(fast, cancel), preview_of=request.sampler_label))
     generator = torch.Generator(device=request.solver.device).manual_seed(request.seed)
     started = time.perf_counter()
     solver = request.solver
@@ -149,7 +181,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
     compare = compare_trail = None
     if request.compare_sampler is not None:
-        other = solver.solve(
+        other = request.compared_by.solve(
             request.target[None], num_samples=request.num_samples, sampler=request.compare_sampler,
             steps=request.compare_steps, return_trajectory=True,
             generator=torch.Generator(device=solver.device).manual_seed(request.seed + 1), initial_noise=noise,

@@ -17,7 +17,9 @@ from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK, TIP_FAINT, build_view
 
 def planar_solve(violation=None):
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # sample 1 lands on the target
-    request = SimpleNamespace(sampler="ddpm", seed=0, refine_steps=0, compare_sampler=None, constraints=())
+    request = SimpleNamespace(
+        sampler="ddpm", sampler_label="ddpm", seed=0, refine_steps=0, compare_sampler=None, constraints=()
+    )
     return SimpleNamespace(request=request, view=view, trail_points=trail_points(view.joints), solve_seconds=0.01,
                            compare=None, state_violation=violation, preview_of=None)  # fmt: skip
 

@@ -1,0 +1,83 @@
+"""A model's few-step student in the viewer (issue 27, deliver 3): found beside its teacher, offered as a sampler.
+
+A student of `python -m ikdp.distill` is its teacher's network trained so that a few DDIM steps
+land where the teacher's long sampler lands from the same noise. When the folder of models holds
+a student of the model the viewer opens, the Sampling folder offers it as the sampler "student"
+(a robot's default: a new target's first frame comes after a few network evaluations, not a
+hundred); one button switches to the teacher's full DDPM and back; "compare with" draws the other
+from the very same x_T; and a robot's drag shows the student while the teacher's solve runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import ikdp
+from ikdp.checkpoint import read_checkpoint
+
+STUDENT = "student"  # the sampler dropdown's and "compare with"'s name for the student
+DETERMINISTIC = {"ddim": "DDIM (deterministic ODE)", "dpmpp2m": "DPM-Solver++(2M) (deterministic ODE)"}
+
+
+def sampler_title(name: str, steps: int) -> str:
+    return f"{DETERMINISTIC.get(name, name.upper() + ' (stochastic)')}, {steps} steps"
+
+
+def is_student_of(record: dict | None, teacher: ikdp.Solver) -> bool:
+    """A checkpoint's `distill` record names `teacher`: the same file name and the same recorded metrics (a copy of
+    the teacher elsewhere still finds its student; another model of the same name does not)."""
+    if not isinstance(record, dict):
+        return False
+    teacher_file = Path(str(teacher.metadata.get("path", ""))).name
+    same_file = Path(str(record.get("teacher_path", ""))).name == teacher_file
+    return same_file and record.get("teacher_metrics") == teacher.metadata.get("metrics")
+
+
+def find_student(teacher: ikdp.Solver, folder: Path | None) -> ikdp.Solver | None:
+    """The first student of `teacher` (by file name) among the checkpoints in `folder`, loaded; None if none.
+
+    A student is never given a student of its own, and a file ikdp cannot read is skipped (the Model
+    dropdown says why when it is picked).
+    """
+    if folder is None or not Path(folder).is_dir() or teacher.metadata.get("distill"):
+        return None
+    for path in sorted(Path(folder).glob("*.pt")):
+        try:
+            if is_student_of(read_checkpoint(path).get("distill"), teacher):
+                return ikdp.load(path, device=teacher.device)
+        except (ikdp.CheckpointError, OSError):
+            continue
+    return None
+
+
+def student_sampling(student: ikdp.Solver) -> tuple[str, int]:
+    """The (sampler, steps) the student was distilled for: its few steps, on its own grid (Solver.default_spacing)."""
+    record = student.metadata["distill"]
+    return str(record["sampler"]), int(record["steps"])
+
+
+def role(solver: ikdp.Solver, student: ikdp.Solver | None) -> str:
+    """ "student", "teacher" (a model that has a student here) or "" (no student in sight)."""
+    if solver.metadata.get("distill"):
+        return STUDENT
+    return "teacher" if student is not None else ""
+
+
+def solve_title(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str, steps: int) -> str:
+    """The label over a solve: its sampler, and whose network ran it when a student is in sight."""
+    who = role(solver, student)
+    return (f"{who.capitalize()}: " if who else "") + sampler_title(sampler, steps)
+
+
+def sampler_label(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str) -> str:
+    """The sampler as the readouts name it: "student's ddim", "teacher's ddpm", or the sampler alone."""
+    who = role(solver, student)
+    return f"{who}'s {sampler}" if who else sampler
+
+
+def switch_label(on_student: bool, teacher: ikdp.Solver, student: ikdp.Solver) -> str:
+    """The Sampling folder's button: what one click shows."""
+    if on_student:
+        return f"Show the teacher's full denoising (DDPM, {teacher.timesteps} steps)"
+    sampler, steps = student_sampling(student)
+    return f"Back to the student ({sampler.upper()}, {steps} steps)"

@@ -1,0 +1,144 @@
+"""A model's few-step student in the viewer (issue 27, deliver 3): found beside its teacher, solved as the sampler
+"student", one button from the teacher's full denoising, compared with it from the same x_T, and a drag's preview.
+
+A tiny Panda teacher (T = 10) and a 2-step student distilled from it by ikdp.distill in a folder of their own:
+the poses are poor, which model ran and what the panel says are checked.
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from viz_helpers import running_app, settle
+
+import ikdp
+from ikdp.distill import DistillConfig, distill
+from ikdp_viz.messages import ShowSolve
+from ikdp_viz.student import STUDENT, find_student, is_student_of
+
+K = 4
+STUDENT_STEPS = 2
+
+
+@pytest.fixture(scope="module")
+def models(tiny_chain_checkpoint, tmp_path_factory):
+    """(teacher path, student path, their folder)."""
+    folder = tmp_path_factory.mktemp("teacher_and_student")
+    teacher = shutil.copy(tiny_chain_checkpoint, folder / "panda_teacher.pt")
+    config = DistillConfig(
+        teacher=str(teacher), student_steps=STUDENT_STEPS, teacher_steps=4, steps=3, batch=8, save_every=100,
+        eval_targets=4, output=str(folder / "panda_student.pt"), log_dir=str(folder.parent / "student_tb"), threads=1,
+    )  # fmt: skip
+    return teacher, distill(config), folder
+
+
+@pytest.fixture
+def app(models):
+    teacher, _, folder = models
+    with running_app(ikdp.load(teacher), solve_now=False, animation_seconds=0.0, checkpoint_folder=folder) as app:
+        app.panel.samples.value = K
+        settle(app)
+        yield app
+
+
+def test_the_student_is_found_beside_its_teacher_and_only_there(models, tiny_chain_checkpoint, tiny_checkpoint):
+    teacher_path, student_path, folder = models
+    teacher = ikdp.load(teacher_path)
+    student = find_student(teacher, folder)
+    assert student is not None and student.metadata["path"] == str(student_path)
+    assert find_student(ikdp.load(tiny_checkpoint), folder) is None  # another model has no student here
+    assert find_student(student, folder) is None  # a student has none of its own
+    assert find_student(teacher, None) is None
+    record = dict(student.metadata["distill"])
+    assert is_student_of(record, teacher)
+    record["teacher_metrics"] = {**record["teacher_metrics"], "tip_error_median": 1.0}  # another model, same name
+    assert not is_student_of(record, teacher)
+
+
+def test_the_sampler_student_solves_with_the_students_network_in_its_own_steps(app, models):
+    panel = app.panel
+    assert panel.sampler.options[0] == STUDENT and STUDENT in panel.learn.compare.options
+    assert panel.teacher_student.visible
+    panel.sampler.value = STUDENT
+    settle(app)
+    request, view = app.solved.request, app.solved.view
+    assert request.solver is app.session.student and request.solver is not app.solver
+    assert (request.sampler, request.steps) == ("ddim", STUDENT_STEPS) and view.num_states == STUDENT_STEPS + 1
+    assert panel.steps.disabled and panel.steps.value == STUDENT_STEPS  # the slider says the steps it takes
+    assert "student's ddim" in panel.readout_text.content
+    assert panel.teacher_student.label == "Show the teacher's full denoising (DDPM, 10 steps)"
+
+
+def test_one_click_shows_the_teachers_full_denoising_and_one_brings_the_student_back(app):
+    panel = app.panel
+    panel.sampler.value = STUDENT
+    settle(app)
+    app.writer.run(lambda _: app.sampling.on_switch())  # what the button's click does, on the loop
+    settle(app)
+    assert panel.sampler.value == "ddpm" and app.solved.request.solver is app.solver
+    assert app.solved.view.num_states == app.solver.timesteps + 1 and panel.steps.value == app.solver.timesteps
+    assert "teacher's ddpm" in panel.readout_text.content
+    assert panel.teacher_student.label == f"Back to the student (DDIM, {STUDENT_STEPS} steps)"
+    app.writer.run(lambda _: app.sampling.on_switch())
+    settle(app)
+    assert panel.sampler.value == STUDENT and app.solved.request.solver is app.session.student
+
+
+def test_teacher_and_student_are_compared_from_the_same_noise(app):
+    panel = app.panel
+    panel.sampler.value = STUDENT
+    panel.learn.compare.value = "ddpm"  # the teacher's DDPM beside the student
+    settle(app)
+    solved = app.solved
+    request, view, compare = solved.request, solved.view, solved.compare
+    assert request.solver is app.session.student and request.compared_by is app.solver
+    assert compare.num_states == app.solver.timesteps + 1 and view.num_states == STUDENT_STEPS + 1
+    assert np.allclose(compare.joint_values[0], view.joint_values[0])  # x_T: the very same noise
+    nodes = app.writer.stage.compare.nodes
+    assert nodes["title"].text == "Teacher: DDPM (stochastic), 10 steps"
+    assert nodes["main_title"].text == f"Student: DDIM (deterministic ODE), {STUDENT_STEPS} steps: same x_T"
+    panel.sampler.value = "ddpm"  # and the other way round: the student beside the teacher
+    panel.learn.compare.value = STUDENT
+    settle(app)
+    assert app.solved.request.compared_by is app.session.student
+    assert app.writer.stage.compare.nodes["title"].text.startswith("Student: DDIM")
+
+
+def test_a_drag_with_the_teacher_previews_the_student(app):
+    app.panel.sampler.value = "ddpm"
+    settle(app)
+    shown = []
+    original = app.writer._show_solve
+    app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
+    moved = np.concatenate([app.target[:3] + np.array([0.05, 0.0, 0.0]), app.target[3:]])
+    app.move_target(moved, from_gizmo=True, dragging=True)
+    settle(app)
+    assert [(solved.request.solver is app.session.student, solved.preview_of) for solved in shown] == [
+        (True, "teacher's ddpm"),
+        (False, None),
+    ]
+    app.writer.post(ShowSolve(shown[0], newest=True))
+    app.writer.flush()
+    expected = f"**Fast preview** (student's ddim, {STUDENT_STEPS} steps) while the teacher's ddpm solve runs"
+    assert expected in app.panel.readout_text.content
+
+
+def test_the_command_line_opens_a_robot_on_its_student(app, models):
+    from ikdp_viz.__main__ import apply_settings, parse_config
+
+    apply_settings(app, parse_config(["--ckpt", str(models[0]), "--samples", str(K)]))
+    settle(app)
+    assert app.panel.sampler.value == STUDENT and app.solved.request.solver is app.session.student
+
+
+def test_a_model_without_a_student_takes_the_student_away(app, tiny_chain_checkpoint):
+    app.panel.sampler.value = STUDENT
+    settle(app)
+    assert app.load_checkpoint(tiny_chain_checkpoint)  # not in the folder: no student of its own there
+    settle(app)
+    panel = app.panel
+    assert app.session.student is None and STUDENT not in panel.sampler.options
+    assert STUDENT not in panel.learn.compare.options and not panel.teacher_student.visible
+    assert panel.sampler.value == "ddpm" and app.solved.request.solver is app.solver
