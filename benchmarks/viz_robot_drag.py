@@ -79,9 +79,13 @@ def summary(values: list[float]) -> dict[str, float]:
     return {"median": float(np.median(array)), "p95": float(np.percentile(array, 95)), "max": float(array.max())}
 
 
-def setups(moves: int) -> dict[str, dict]:
-    """Every setup of `--setups`, in one run: label -> measure()'s lists."""
-    student = find_student(ikdp.load(shipped_checkpoint("ikdp_panda")), shipped_dir())
+def setups(moves: int, student_path: str | None = None) -> dict[str, dict]:
+    """Every setup of `--setups`, in one run: label -> measure()'s lists. `student_path`: a student of ikdp_panda
+    to use instead of the shipped one."""
+    if student_path is not None:
+        student = ikdp.load(student_path)
+    else:
+        student = find_student(ikdp.load(shipped_checkpoint("ikdp_panda")), shipped_dir())
     if student is None:
         raise SystemExit("viz_robot_drag: no shipped student of ikdp_panda (checkpoints/*.pt with its distill record)")
     return {
@@ -101,9 +105,10 @@ def main() -> None:
     parser.add_argument("--label", default="this checkout")
     parser.add_argument("--no-previews", action="store_true", help="the full solve alone (this checkout's switch)")
     parser.add_argument("--setups", action="store_true", help="the student and the teacher's setups, one run")
+    parser.add_argument("--student", default=None, help="with --setups: this student of ikdp_panda, not the shipped")
     args = parser.parse_args()
     if args.setups:
-        results = setups(args.moves)
+        results = setups(args.moves, args.student)
     else:
         results = {args.label: measure(args.moves, previews=False if args.no_previews else None)}
     print(f"Panda drag, K = 16, one torch thread, {args.moves} moves ({cpu_model()})")

@@ -77,12 +77,10 @@ def check_settings(config: VizConfig) -> None:
 def apply_settings(app, config: VizConfig) -> None:
     """Set the panel as the flags ask, then solve the first target."""
     from ikdp_viz.arm_kinds import arm_kind
-    from ikdp_viz.student import STUDENT
+    from ikdp_viz.student import STUDENT, opening_sampler
 
-    panel, kind = app.panel, arm_kind(app.solver)
-    default_sampler, default_steps = kind.default_sampler
-    if app.session.student is not None and kind.opens_on_student:
-        default_sampler = STUDENT
+    panel = app.panel
+    default_sampler, default_steps = opening_sampler(arm_kind(app.solver), app.session.student)
     if config.sampler == STUDENT and app.session.student is None:
         fail(f"--sampler student: no distilled student of {app.solver.metadata['path']} among the shipped models")
     panel.samples.value = config.samples

@@ -132,7 +132,7 @@ class RecordConfig:
     # planar X Y; a robot X Y Z in metres, then ROLL PITCH YAW in degrees or W X Y Z; None: the model's first
     target: tuple[float, ...] | None = None
     samples: int = 16  # samples K
-    sampler: str | None = None  # ddpm, ddim, dpmpp2m (None: the viewer's default for the model)
+    sampler: str | None = None  # ddpm, ddim, dpmpp2m, student (None: the viewer's default for the model)
     steps: int | None = None  # steps of a sampler that can skip some (None: the viewer's default)
     seed: int = 0  # sampling seed
     refine_steps: int = 0  # damped-least-squares steps after sampling
@@ -151,28 +151,34 @@ def main(argv: list[str] | None = None) -> None:
     import tyro
 
     from ikdp.samplers import SAMPLERS
+    from ikdp.shipped import shipped_dir
     from ikdp_viz.arm_kinds import arm_kind
     from ikdp_viz.command_line import checkpoint_path, command_target, fail, load_solver, target_flag_error
+    from ikdp_viz.session import Session
     from ikdp_viz.solving import SolveRequest, solve
+    from ikdp_viz.student import STUDENT, find_student, opening_sampler
 
     config = tyro.cli(RecordConfig, args=argv, prog=PROGRAM, description=RecordConfig.__doc__)
     torch.set_num_threads(1)
     solver = load_solver(PROGRAM, checkpoint_path(config.ckpt))
-    default_sampler, default_steps = arm_kind(solver).default_sampler
+    student = find_student(solver, shipped_dir())  # as the viewer opens the model
+    default_sampler, default_steps = opening_sampler(arm_kind(solver), student)
     sampler = config.sampler or default_sampler
-    if sampler not in SAMPLERS:
-        fail(PROGRAM, f"--sampler {sampler}: expected one of {', '.join(SAMPLERS)}")
+    if sampler not in (*SAMPLERS, STUDENT):
+        fail(PROGRAM, f"--sampler {sampler}: expected one of {', '.join((*SAMPLERS, STUDENT))}")
+    if sampler == STUDENT and student is None:
+        fail(PROGRAM, f"--sampler student: no distilled student of {config.ckpt} among the shipped models")
     if not config.seconds > 0:
         fail(PROGRAM, f"--seconds {config.seconds}: expected a positive duration")
     try:
         target = command_target(solver, config.target) if config.target is not None else None
     except ValueError as error:
         fail(PROGRAM, target_flag_error(config.target, error))
-    steps = (config.steps or default_steps) if SAMPLERS[sampler].supports_steps else None
+    runs_on, sampler, steps = Session(solver, student=student).sampling(sampler, config.steps or default_steps)
     request = SolveRequest(
-        solver=solver, target=arm_kind(solver).initial_target(solver, target), num_samples=config.samples,
+        solver=runs_on, target=arm_kind(solver).initial_target(solver, target), num_samples=config.samples,
         sampler=sampler, steps=steps, refine_steps=config.refine_steps, seed=config.seed,
-        arrival=time.perf_counter(), animate=False,
+        arrival=time.perf_counter(), animate=False, student=student, teacher=None if runs_on is solver else solver,
     )  # fmt: skip
     solved = solve(request, threading.Event())
     settings = ViewSettings(

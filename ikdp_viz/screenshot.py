@@ -108,8 +108,8 @@ class ScreenshotConfig:
     prior: bool = False  # press "Draw from the prior" once solved
     timestep: int | None = None  # the step shown (None: t = 0, the final pose)
     refine_steps: int = 0  # tick "refine" with this many steps (0: off)
-    sampler: str | None = None  # the panel's sampler (None: the model's default)
-    compare: str = "off"  # "compare with": off, ddim, dpmpp2m, ddpm
+    sampler: str | None = None  # the panel's sampler, or student (None: the model's default, as the viewer opens)
+    compare: str = "off"  # "compare with": off, ddim, dpmpp2m, ddpm, student
     saved_page: Path | None = None  # instead: open this saved HTML page (a shared denoising) from disk, no server
     wait: float = 6.0  # seconds a saved page plays before the picture
     target_kind: str = "full pose"  # Constraints folder, pose models: "position only", "free x axis", ... (open)
@@ -142,8 +142,10 @@ def configured_app(args: ScreenshotConfig):
     import ikdp
     from ikdp.shipped import shipped_dir
     from ikdp_viz.app import VizApp, list_checkpoints
+    from ikdp_viz.arm_kinds import arm_kind
     from ikdp_viz.command_line import checkpoint_path
     from ikdp_viz.panel import DEFAULT_DURATION
+    from ikdp_viz.student import opening_sampler
 
     torch.set_num_threads(1)
     path = checkpoint_path(args.ckpt)
@@ -155,6 +157,7 @@ def configured_app(args: ScreenshotConfig):
         server,
         solver,
         checkpoints=checkpoints,
+        checkpoint_folder=shipped_dir(),  # as the command line opens it: the model's student found there
         solve_now=False,
         animation_seconds=0.0 if args.moments is None else DEFAULT_DURATION,
         target=None if args.target is None else tuple(args.target),
@@ -166,8 +169,7 @@ def configured_app(args: ScreenshotConfig):
     app.panel.show_estimate.value = args.show_estimate
     app.panel.joint_space.show.value = args.joint_space
     app.panel.learn.compare.value = args.compare
-    if args.sampler is not None:
-        app.panel.sampler.value = args.sampler
+    app.panel.sampler.value = args.sampler or opening_sampler(arm_kind(solver), app.session.student)[0]
     if args.refine_steps:
         app.panel.refine_steps.value = args.refine_steps
         app.panel.refine.value = True

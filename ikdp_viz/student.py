@@ -80,4 +80,12 @@ def switch_label(on_student: bool, teacher: ikdp.Solver, student: ikdp.Solver) -
     if on_student:
         return f"Show the teacher's full denoising (DDPM, {teacher.timesteps} steps)"
     sampler, steps = student_sampling(student)
-    return f"Back to the student ({sampler.upper()}, {steps} steps)"
+    return f"Show the distilled student ({sampler.upper()}, {steps} steps)"
+
+
+def opening_sampler(kind, student: ikdp.Solver | None) -> tuple[str, int]:
+    """The (sampler, steps) a viewer opens on for an arm of `kind` (arm_kinds): the student where the kind opens
+    on one and there is one (a robot's), else the kind's own (the paper's DDPM); the steps apply to a sampler
+    that can skip some."""
+    sampler, steps = kind.default_sampler
+    return (STUDENT if student is not None and kind.opens_on_student else sampler), steps

@@ -80,7 +80,7 @@ def test_one_click_shows_the_teachers_full_denoising_and_one_brings_the_student_
     assert panel.sampler.value == "ddpm" and app.solved.request.solver is app.solver
     assert app.solved.view.num_states == app.solver.timesteps + 1 and panel.steps.value == app.solver.timesteps
     assert "teacher's ddpm" in panel.readout_text.content
-    assert panel.teacher_student.label == f"Back to the student (DDIM, {STUDENT_STEPS} steps)"
+    assert panel.teacher_student.label == f"Show the distilled student (DDIM, {STUDENT_STEPS} steps)"
     app.writer.run(lambda _: app.sampling.on_switch())
     settle(app)
     assert panel.sampler.value == STUDENT and app.solved.request.solver is app.session.student
