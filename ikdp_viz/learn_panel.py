@@ -84,6 +84,7 @@ COMPARE_CHOICES = ("off", "ddim", "dpmpp2m", "ddpm")  # the "compare with" dropd
 def build_compare(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
     return gui.add_dropdown(
         "compare with", COMPARE_CHOICES, initial_value="off",
-        hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn at the left with its own "
-        "trail; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ follow the deterministic ODE",
+        hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn beside with its own "
+        "trail; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ follow the deterministic ODE; "
+        "teacher: the teacher's run the distilled student learnt to match; student: the student's few steps",
     )  # fmt: skip

@@ -10,7 +10,7 @@ from __future__ import annotations
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp_viz.learn_panel import COMPARE_CHOICES
 from ikdp_viz.panel import Panel, highlight_options
-from ikdp_viz.student import STUDENT, student_sampling, switch_label
+from ikdp_viz.student import STUDENT, TEACHER, student_sampling, switch_label
 
 
 class SamplingControls:
@@ -27,7 +27,7 @@ class SamplingControls:
         student, panel = self.session.student, self.panel
         extra = (STUDENT,) if student is not None else ()
         panel.sampler.options = extra + sampler_names()
-        panel.learn.compare.options = COMPARE_CHOICES + extra
+        panel.learn.compare.options = COMPARE_CHOICES + ((TEACHER, STUDENT) if student is not None else ())
         if panel.sampler.value not in panel.sampler.options:
             panel.sampler.value = "ddpm"
         if panel.learn.compare.value not in panel.learn.compare.options:

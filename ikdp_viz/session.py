@@ -18,7 +18,7 @@ from ikdp.samplers import SAMPLERS
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.panel import Panel
 from ikdp_viz.solving import SolveRequest
-from ikdp_viz.student import STUDENT, student_sampling
+from ikdp_viz.student import STUDENT, TEACHER, distillation_target, student_sampling
 
 
 def initial_target(solver: ikdp.Solver, target=None) -> np.ndarray:
@@ -92,10 +92,14 @@ class Session:
         """The comparison the panel asks for: another sampler (or the student, or from it the teacher) from the
         same x_T, unless it is the sampler itself."""
         other = str(panel.learn.compare.value)
-        if other == "off" or other == choice or (other not in SAMPLERS and other != STUDENT):
+        if other == "off" or other == choice or (other not in SAMPLERS and other not in (STUDENT, TEACHER)):
             return {}
-        if other == STUDENT and self.student is None:
+        if other in (STUDENT, TEACHER) and self.student is None:
             return {}
+        if other == TEACHER:  # the teacher's run the student was distilled from, beside either
+            sampler, steps, spacing = distillation_target(self.student)
+            return {"compare_sampler": sampler, "compare_steps": steps, "compare_solver": self.solver,
+                    "compare_spacing": spacing}  # fmt: skip
         steps = int(panel.steps.value) if chosen_steps is None else chosen_steps
         solver, sampler, steps = self.sampling(other, steps)
         return {"compare_sampler": sampler, "compare_steps": steps, "compare_solver": solver}

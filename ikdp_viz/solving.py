@@ -44,6 +44,7 @@ class SolveRequest:
     animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
     compare_sampler: str | None = None  # also solve with this sampler from the same x_T (compare.py); None: not
     compare_steps: int | None = None  # its number of steps (None: all T)
+    compare_spacing: str | None = None  # its timestep grid (None: the model's default for it)
     constraints: tuple = ()  # ikdp constraints from the Constraints panel (constraint_controls.py)
     compare_solver: ikdp.Solver | None = None  # the model the comparison runs (student.py); None: `solver`
     student: ikdp.Solver | None = None  # the few-step student in sight (student.py): a drag's preview runs it
@@ -63,7 +64,10 @@ class SolveRequest:
         return solve_title(self.solver, self.student, self.sampler, steps)
 
     def compare_title(self, steps: int) -> str:
-        return solve_title(self.compared_by, self.student, str(self.compare_sampler), steps)
+        title = solve_title(self.compared_by, self.student, str(self.compare_sampler), steps)
+        if self.solver is self.student and self.compare_spacing is not None:
+            title += ": what the student was trained to match"  # its teacher's own sampler (student.TEACHER)
+        return title
 
     @property
     def sampler_label(self) -> str:
@@ -183,7 +187,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
     if request.compare_sampler is not None:
         other = request.compared_by.solve(
             request.target[None], num_samples=request.num_samples, sampler=request.compare_sampler,
-            steps=request.compare_steps, return_trajectory=True,
+            steps=request.compare_steps, spacing=request.compare_spacing, return_trajectory=True,
             generator=torch.Generator(device=solver.device).manual_seed(request.seed + 1), initial_noise=noise,
             callback=stop_when(cancel),
         )  # fmt: skip

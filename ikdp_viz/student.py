@@ -16,6 +16,7 @@ import ikdp
 from ikdp.checkpoint import read_checkpoint
 
 STUDENT = "student"  # the sampler dropdown's and "compare with"'s name for the student
+TEACHER = "teacher"  # "compare with": the teacher's sampler the student was trained to match, from the same x_T
 DETERMINISTIC = {"ddim": "DDIM (deterministic ODE)", "dpmpp2m": "DPM-Solver++(2M) (deterministic ODE)"}
 
 
@@ -54,6 +55,13 @@ def student_sampling(student: ikdp.Solver) -> tuple[str, int]:
     """The (sampler, steps) the student was distilled for: its few steps, on its own grid (Solver.default_spacing)."""
     record = student.metadata["distill"]
     return str(record["sampler"]), int(record["steps"])
+
+
+def distillation_target(student: ikdp.Solver) -> tuple[str, int, str]:
+    """(sampler, steps, spacing) of the teacher's run the student learnt to land on from the same noise: what
+    distillation does, seen, when the two are drawn side by side."""
+    record = student.metadata["distill"]
+    return str(record["teacher_sampler"]), int(record["teacher_steps"]), str(record["teacher_spacing"])
 
 
 def role(solver: ikdp.Solver, student: ikdp.Solver | None) -> str:

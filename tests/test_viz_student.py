@@ -16,7 +16,7 @@ from viz_helpers import running_app, settle
 import ikdp
 from ikdp.distill import DistillConfig, distill
 from ikdp_viz.messages import ShowSolve
-from ikdp_viz.student import STUDENT, find_student, is_student_of
+from ikdp_viz.student import STUDENT, TEACHER, find_student, is_student_of
 
 K = 4
 STUDENT_STEPS = 2
@@ -104,6 +104,23 @@ def test_teacher_and_student_are_compared_from_the_same_noise(app):
     settle(app)
     assert app.solved.request.compared_by is app.session.student
     assert app.writer.stage.compare.nodes["title"].text.startswith("Student: DDIM")
+
+
+def test_the_student_beside_the_teacher_run_it_learnt_to_match(app, models):
+    """What distillation does, seen: the teacher's own sampler of the distillation (DPM-Solver++(2M), 4 steps
+    packed here) from the student's x_T."""
+    panel = app.panel
+    assert {TEACHER, STUDENT} <= set(panel.learn.compare.options)
+    panel.sampler.value = STUDENT
+    panel.learn.compare.value = TEACHER
+    settle(app)
+    solved = app.solved
+    request, view, compare = solved.request, solved.view, solved.compare
+    assert request.compared_by is app.solver and (request.compare_sampler, request.compare_steps) == ("dpmpp2m", 4)
+    assert request.compare_spacing == "quadratic" and compare.num_states == 5
+    assert np.allclose(compare.joint_values[0], view.joint_values[0])
+    title = app.writer.stage.compare.nodes["title"].text
+    assert title == "Teacher: DPM-Solver++(2M) (deterministic ODE), 4 steps: what the student was trained to match"
 
 
 def test_a_drag_with_the_teacher_previews_the_student(app):
