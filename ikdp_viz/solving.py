@@ -21,7 +21,7 @@ from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import checkable, final_violations, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
-from ikdp_viz.student import sampler_label, solve_title, student_sampling
+from ikdp_viz.student import sampler_label, solve_title, student_sampling, target_title
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
 PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first (deliver 6): 5 steps, about 40 ms here
@@ -64,10 +64,9 @@ class SolveRequest:
         return solve_title(self.solver, self.student, self.sampler, steps)
 
     def compare_title(self, steps: int) -> str:
-        title = solve_title(self.compared_by, self.student, str(self.compare_sampler), steps)
-        if self.solver is self.student and self.compare_spacing is not None:
-            title += ": what the student was trained to match"  # its teacher's own sampler (student.TEACHER)
-        return title
+        if self.solver is self.student and self.compare_spacing is not None:  # the run it was distilled from
+            return target_title(str(self.compare_sampler), steps)
+        return solve_title(self.compared_by, self.student, str(self.compare_sampler), steps)
 
     @property
     def sampler_label(self) -> str:

@@ -77,6 +77,12 @@ def solve_title(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str, 
     return (f"{who.capitalize()}: " if who else "") + sampler_title(sampler, steps)
 
 
+def target_title(sampler: str, steps: int) -> str:
+    """The label over the teacher's run a student was distilled to match (short: it sits over a narrow view)."""
+    short = {"dpmpp2m": "DPM-Solver++"}.get(sampler, sampler.upper())
+    return f"Teacher: {short}, {steps} steps, what the student learnt to match"
+
+
 def sampler_label(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str) -> str:
     """The sampler as the readouts name it: "student's ddim", "teacher's ddpm", or the sampler alone."""
     who = role(solver, student)

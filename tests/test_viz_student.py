@@ -120,7 +120,7 @@ def test_the_student_beside_the_teacher_run_it_learnt_to_match(app, models):
     assert request.compare_spacing == "quadratic" and compare.num_states == 5
     assert np.allclose(compare.joint_values[0], view.joint_values[0])
     title = app.writer.stage.compare.nodes["title"].text
-    assert title == "Teacher: DPM-Solver++(2M) (deterministic ODE), 4 steps: what the student was trained to match"
+    assert title == "Teacher: DPM-Solver++, 4 steps, what the student learnt to match"
 
 
 def test_a_drag_with_the_teacher_previews_the_student(app):
