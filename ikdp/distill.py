@@ -54,6 +54,10 @@ class DistillConfig:
     teacher_steps: int = 16  # its steps
     teacher_spacing: Literal["uniform", "quadratic"] = "quadratic"  # its grid
     tip_loss_weight: float = 2000.0  # weight of the FK miss of the student's pose (ikdp_n4_2step's; at 100 it lost)
+    # weight of the spread term: the student's poses for one target as far apart on average as the teacher's from the
+    # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.40 x the teacher's)
+    spread_weight: float = 0.0
+    noises_per_target: int = 1  # noises drawn for each target of a batch (the spread term needs 2 or more)
     steps: int = 2000  # optimizer steps (the run ends at this or at --minutes, whichever comes first)
     minutes: float = 0.0  # wall-clock budget of the whole run, resumes included (0: none)
     batch: int = 256  # poses per step
@@ -73,14 +77,21 @@ def validate(config: DistillConfig) -> None:
     """ValueError naming the option when a value cannot distil."""
     positive = {"student_steps": config.student_steps, "teacher_steps": config.teacher_steps}
     positive |= {"batch": config.batch, "lr": config.lr, "save_every": config.save_every}  # steps: TrainingBudget
+    positive |= {"noises_per_target": config.noises_per_target}
     for name, value in positive.items():
         if not value > 0:
             raise ValueError(f"{name}: got {value}, expected a positive number")
     nonnegative = {"threads": config.threads, "eval_targets": config.eval_targets}
-    nonnegative |= {"tip_loss_weight": config.tip_loss_weight}
+    nonnegative |= {"tip_loss_weight": config.tip_loss_weight, "spread_weight": config.spread_weight}
     for name, value in nonnegative.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
+    if config.batch % config.noises_per_target:
+        raise ValueError(
+            f"batch: got {config.batch}, expected a multiple of noises_per_target {config.noises_per_target}"
+        )
+    if config.spread_weight > 0 and config.noises_per_target < 2:
+        raise ValueError("spread_weight: needs noises_per_target 2 or more (pairs of poses for one target)")
 
 
 def student_sampler(model: IKDiffusion, config: DistillConfig) -> DDIMSampler:
@@ -104,6 +115,22 @@ def unrolled_student(model: IKDiffusion, sampler: DDIMSampler, noise: torch.Tens
             clean = model.representation.project(clean)
         x = sampler.update(index, x, clean)
     return x
+
+
+def spread_miss(student: torch.Tensor, teacher: torch.Tensor, per_target: int) -> torch.Tensor:
+    """(B, D) student and teacher poses, `per_target` consecutive rows per target -> (B // per_target,) the squared
+    difference between the mean distance of a target's student poses and that of its teacher poses from the same
+    noises: zero when the student's samples are as spread as the teacher's, wherever each one lands. (Matching the
+    distances pair by pair started 20 times larger than the other terms on the Panda: the teacher's 4- and 16-step
+    runs already differ pair by pair.)"""
+
+    def mean_distance(poses: torch.Tensor) -> torch.Tensor:
+        grouped = poses.unflatten(0, (-1, per_target))  # (G, K, D)
+        difference = grouped[:, :, None] - grouped[:, None, :]
+        distances = (difference.square().sum(-1) + 1e-12).sqrt()  # (G, K, K); the epsilon: no NaN at zero
+        return distances.sum(dim=(1, 2)) / (per_target * (per_target - 1))  # the diagonal's zeros left out
+
+    return (mean_distance(student) - mean_distance(teacher)).square()
 
 
 @torch.no_grad()
@@ -230,7 +257,9 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         while not budget.finished(step, elapsed()):
             for group in optimizer.param_groups:
                 group["lr"] = config.lr * budget.lr_factor(step, elapsed())
-            joints = prior.sample(config.batch, arm, generator=data_generator)  # (B, J)
+            per_target = config.noises_per_target  # each target's poses on consecutive rows
+            joints = prior.sample(config.batch // per_target, arm, generator=data_generator)
+            joints = joints.repeat_interleave(per_target, dim=0)  # (B, J)
             noise = torch.randn((config.batch, student.representation.dim), generator=data_generator)  # x_T (B, D)
             joints, noise = joints.to(device), noise.to(device)
             targets = arm.end_effector(joints)  # (B, target_dim)
@@ -239,6 +268,8 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             match = ((pose - goal) ** 2).mean(-1)  # (B,)
             consistency, tip_miss = student.consistency_miss(pose, joints, targets)
             loss = (match + config.tip_loss_weight * consistency).mean()
+            spread = spread_miss(pose, goal, per_target) if per_target > 1 else match.new_zeros(1)
+            loss = loss + config.spread_weight * spread.mean()
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
@@ -247,6 +278,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             if step % 10 == 0:
                 writer.add_scalar("train/loss", float(loss.detach()), step)
                 writer.add_scalar("train/teacher_match", float(match.mean()), step)
+                writer.add_scalar("train/spread_miss", float(spread.mean()), step)
                 writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean()), step)
                 writer.add_scalar("train/lr", optimizer.param_groups[0]["lr"], step)
                 progress.set_postfix(loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.sqrt().mean()):.4f}")

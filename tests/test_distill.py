@@ -6,7 +6,7 @@ import torch
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.describe import describe
-from ikdp.distill import DistillConfig, distill, main, student_sampler, unrolled_student
+from ikdp.distill import DistillConfig, distill, main, spread_miss, student_sampler, unrolled_student
 from ikdp.train import parse_config
 
 
@@ -88,6 +88,8 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--student-steps", "0"], "student_steps: got 0, expected a positive number"),
         (["--minutes", "-1"], "minutes: got -1.0, expected 0 (no clock) or a positive number"),
         (["--teacher", "no_such_model"], "no_such_model"),
+        (["--spread-weight", "1"], "spread_weight: needs noises_per_target 2 or more"),
+        (["--noises-per-target", "3", "--batch", "256"], "batch: got 256, expected a multiple of noises_per_target 3"),
     ],
 )
 def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):
@@ -96,3 +98,22 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):
     assert exit_info.value.code == 2
     error = capsys.readouterr().err
     assert "ikdp-distill: error:" in error and message in error and "Traceback" not in error
+
+
+def test_the_spread_term_is_zero_for_a_moved_copy_of_the_teachers_spread_and_not_for_a_collapse():
+    teacher = torch.randn((2 * 4, 5), generator=torch.Generator().manual_seed(0))  # 2 targets, 4 noises each
+    rotation, _ = torch.linalg.qr(torch.randn((5, 5), generator=torch.Generator().manual_seed(1)))
+    moved = teacher @ rotation + 0.3  # other poses, the same distances between them
+    assert torch.allclose(spread_miss(moved, teacher, 4), torch.zeros(2), atol=1e-6)
+    collapsed = teacher.unflatten(0, (2, 4)).mean(1, keepdim=True).expand(2, 4, 5).reshape(8, 5).clone()
+    collapsed.requires_grad_(True)
+    miss = spread_miss(collapsed, teacher, 4)
+    assert (miss > 0.1).all()
+    miss.sum().backward()
+    assert torch.isfinite(collapsed.grad).all()  # no NaN where poses coincide
+
+
+def test_a_run_with_the_spread_term_draws_several_noises_per_target(tiny_checkpoint, tmp_path):
+    config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, spread_weight=1.0, steps=2)
+    student = torch.load(distill(config), weights_only=True)
+    assert student["train"]["spread_weight"] == 1.0 and student["train"]["noises_per_target"] == 4
