@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 import pytest
-from viz_helpers import running_app, settle
+from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
 from ikdp_viz.chain_scene import gizmo_pose, mesh_poses, skeleton_segments
@@ -241,12 +241,8 @@ def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
 
     with running_app(shipped_solver_or_skip("ikdp_panda"), animation_seconds=0.0) as app:
         settle(app)
-        shown = []
-        original = app.writer._show_solve
-        app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
-        moved = np.concatenate([app.target[:3] + np.array([0.05, 0.0, 0.0]), app.target[3:]])
-        app.move_target(moved, from_gizmo=True, dragging=True)
-        settle(app)
+        shown = solves_shown_by_a_robot_drag(app)
+        moved = app.target
         kinds = [(solved.request.sampler, solved.preview_of) for solved in shown]
         assert kinds == [("dpmpp2m", "ddpm"), ("ddpm", None)]  # the preview first, then the full solve
         assert app.solved.request.sampler == "ddpm" and "Fast preview" not in app.panel.readout_text.content

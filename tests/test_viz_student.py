@@ -11,7 +11,7 @@ import shutil
 
 import numpy as np
 import pytest
-from viz_helpers import running_app, settle
+from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
 from ikdp.distill import DistillConfig, distill
@@ -126,12 +126,7 @@ def test_the_student_beside_the_teacher_run_it_learnt_to_match(app, models):
 def test_a_drag_with_the_teacher_previews_the_student(app):
     app.panel.sampler.value = "ddpm"
     settle(app)
-    shown = []
-    original = app.writer._show_solve
-    app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
-    moved = np.concatenate([app.target[:3] + np.array([0.05, 0.0, 0.0]), app.target[3:]])
-    app.move_target(moved, from_gizmo=True, dragging=True)
-    settle(app)
+    shown = solves_shown_by_a_robot_drag(app)
     assert [(solved.request.solver is app.session.student, solved.preview_of) for solved in shown] == [
         (True, "teacher's ddpm"),
         (False, None),

@@ -61,6 +61,17 @@ def drag_gizmo(app, x: float, y: float, phase: str = "update") -> None:
     asyncio.run_coroutine_threadsafe(app.on_gizmo_update(event), loop).result(timeout=10)
 
 
+def solves_shown_by_a_robot_drag(app, step: float = 0.05) -> list:
+    """Drag a robot's gizmo `step` metres along x (one "update"), let it settle; every solve drawn, in order."""
+    shown = []
+    original = app.writer._show_solve
+    app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
+    moved = np.concatenate([app.target[:3] + np.array([step, 0.0, 0.0]), app.target[3:]])
+    app.move_target(moved, from_gizmo=True, dragging=True)
+    settle(app)
+    return shown
+
+
 def settle(app) -> None:
     assert app.wait_until_still(timeout=60), "the app did not finish solving and animating"
 
