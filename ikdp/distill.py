@@ -55,7 +55,7 @@ class DistillConfig:
     teacher_spacing: Literal["uniform", "quadratic"] = "quadratic"  # its grid
     tip_loss_weight: float = 2000.0  # weight of the FK miss of the student's pose (ikdp_n4_2step's; at 100 it lost)
     # weight of the spread term: the student's poses for one target as far apart on average as the teacher's from the
-    # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.40 x the teacher's)
+    # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.43 x the teacher's)
     spread_weight: float = 0.0
     noises_per_target: int = 1  # noises drawn for each target of a batch (the spread term needs 2 or more)
     steps: int = 2000  # optimizer steps (the run ends at this or at --minutes, whichever comes first)
