@@ -142,6 +142,11 @@ def build_panel(
             hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
         )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+        # in the folder open at the start, so the teacher's full denoising is one click away (a model with a student)
+        teacher_student = gui.add_button(
+            "Show the teacher", icon=viser.Icon.SCHOOL, visible=False,
+            hint="The model's distilled few-step student, or the teacher's full DDPM it was distilled from",
+        )  # fmt: skip
     legend = build_legend(gui)
     joint_space = build_joint_space_controls(gui)
     with gui.add_folder("Sampling"):
@@ -155,7 +160,6 @@ def build_panel(
             hint="student: the model's few-step student (distilled); ddpm: the paper's full denoising, all T steps; "
             "ddim, dpmpp2m: fewer steps of the same model",
         )  # fmt: skip
-        teacher_student = gui.add_button("Show the teacher's full denoising", icon=viser.Icon.SCHOOL, visible=False)
         compare = build_compare(gui)
         steps = gui.add_slider(
             "steps", min=1, max=num_timesteps, step=1, initial_value=min(DEFAULT_STEPS, num_timesteps),

@@ -91,10 +91,10 @@ def sampler_label(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str
 
 def switch_label(on_student: bool, teacher: ikdp.Solver, student: ikdp.Solver) -> str:
     """The Sampling folder's button: what one click shows."""
-    if on_student:
-        return f"Show the teacher's full denoising (DDPM, {teacher.timesteps} steps)"
+    if on_student:  # short: the panel's column cuts a longer label
+        return f"Show the teacher (DDPM, {teacher.timesteps} steps)"
     sampler, steps = student_sampling(student)
-    return f"Show the distilled student ({sampler.upper()}, {steps} steps)"
+    return f"Show the student ({sampler.upper()}, {steps} steps)"
 
 
 def opening_sampler(kind, student: ikdp.Solver | None) -> tuple[str, int]:

@@ -7,14 +7,11 @@ the poses are poor, which model ran and what the panel says are checked.
 
 from __future__ import annotations
 
-import shutil
-
 import numpy as np
 import pytest
 from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
-from ikdp.distill import DistillConfig, distill
 from ikdp_viz.messages import ShowSolve
 from ikdp_viz.student import STUDENT, TEACHER, find_student, is_student_of
 
@@ -22,16 +19,9 @@ K = 4
 STUDENT_STEPS = 2
 
 
-@pytest.fixture(scope="module")
-def models(tiny_chain_checkpoint, tmp_path_factory):
-    """(teacher path, student path, their folder)."""
-    folder = tmp_path_factory.mktemp("teacher_and_student")
-    teacher = shutil.copy(tiny_chain_checkpoint, folder / "panda_teacher.pt")
-    config = DistillConfig(
-        teacher=str(teacher), student_steps=STUDENT_STEPS, teacher_steps=4, steps=3, batch=8, save_every=100,
-        eval_targets=4, output=str(folder / "panda_student.pt"), log_dir=str(folder.parent / "student_tb"), threads=1,
-    )  # fmt: skip
-    return teacher, distill(config), folder
+@pytest.fixture
+def models(tiny_chain_student):
+    return tiny_chain_student
 
 
 @pytest.fixture
@@ -68,7 +58,7 @@ def test_the_sampler_student_solves_with_the_students_network_in_its_own_steps(a
     assert (request.sampler, request.steps) == ("ddim", STUDENT_STEPS) and view.num_states == STUDENT_STEPS + 1
     assert panel.steps.disabled and panel.steps.value == STUDENT_STEPS  # the slider says the steps it takes
     assert "student's ddim" in panel.readout_text.content
-    assert panel.teacher_student.label == "Show the teacher's full denoising (DDPM, 10 steps)"
+    assert panel.teacher_student.label == "Show the teacher (DDPM, 10 steps)"
 
 
 def test_one_click_shows_the_teachers_full_denoising_and_one_brings_the_student_back(app):
@@ -80,7 +70,7 @@ def test_one_click_shows_the_teachers_full_denoising_and_one_brings_the_student_
     assert panel.sampler.value == "ddpm" and app.solved.request.solver is app.solver
     assert app.solved.view.num_states == app.solver.timesteps + 1 and panel.steps.value == app.solver.timesteps
     assert "teacher's ddpm" in panel.readout_text.content
-    assert panel.teacher_student.label == f"Show the distilled student (DDIM, {STUDENT_STEPS} steps)"
+    assert panel.teacher_student.label == f"Show the student (DDIM, {STUDENT_STEPS} steps)"
     app.writer.run(lambda _: app.sampling.on_switch())
     settle(app)
     assert panel.sampler.value == STUDENT and app.solved.request.solver is app.session.student
