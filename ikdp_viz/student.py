@@ -90,7 +90,7 @@ def sampler_label(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str
 
 
 def switch_label(on_student: bool, teacher: ikdp.Solver, student: ikdp.Solver) -> str:
-    """The Sampling folder's button: what one click shows."""
+    """The Denoising folder's teacher/student button: what one click shows."""
     if on_student:  # short: the panel's column cuts a longer label
         return f"Show the teacher (DDPM, {teacher.timesteps} steps)"
     sampler, steps = student_sampling(student)
