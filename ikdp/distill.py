@@ -37,6 +37,7 @@ from tqdm import tqdm
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.model import IKDiffusion
 from ikdp.priors import PosePrior
+from ikdp.refine import damped_least_squares
 from ikdp.samplers import DDIMSampler, make_sampler
 from ikdp.solver import load, model_from_checkpoint
 from ikdp.train import parse_config, save_on_interrupt
@@ -58,6 +59,10 @@ class DistillConfig:
     # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.43 x the teacher's)
     spread_weight: float = 0.0
     noises_per_target: int = 1  # noises drawn for each target of a batch (the spread term needs 2 or more)
+    # damped least-squares steps taken from the teacher's pose before the student is asked to match it (0: none):
+    # the goal then reaches the target in the teacher's own mode, so matching it and reaching the target agree
+    refine_teacher_steps: int = 0
+    init: str = ""  # a student checkpoint of the same teacher to start from (empty: the teacher's weights)
     steps: int = 2000  # optimizer steps (the run ends at this or at --minutes, whichever comes first)
     minutes: float = 0.0  # wall-clock budget of the whole run, resumes included (0: none)
     batch: int = 256  # poses per step
@@ -82,6 +87,7 @@ def validate(config: DistillConfig) -> None:
         if not value > 0:
             raise ValueError(f"{name}: got {value}, expected a positive number")
     nonnegative = {"threads": config.threads, "eval_targets": config.eval_targets}
+    nonnegative |= {"refine_teacher_steps": config.refine_teacher_steps}
     nonnegative |= {"tip_loss_weight": config.tip_loss_weight, "spread_weight": config.spread_weight}
     for name, value in nonnegative.items():
         if value < 0:
@@ -143,7 +149,25 @@ def teacher_poses(teacher: IKDiffusion, config: DistillConfig, noise: torch.Tens
         spacing=config.teacher_spacing,
         initial_noise=noise[:, None],
     )
-    return teacher.representation.encode(trajectory.headings[:, 0]).clone()  # a plain tensor, not an inference one
+    joints = trajectory.headings[:, 0]
+    if config.refine_teacher_steps:
+        joints = refined_in_place(teacher.arm, joints, targets, config.refine_teacher_steps)
+    return teacher.representation.encode(joints).clone()  # a plain tensor, not an inference one
+
+
+# how far (joint-space norm, radians) the refinement may move a teacher's pose and keep it: past that the solver left
+# the teacher's mode (from its far misses, 3 steps moved some Panda poses by 7 rad), and the student keeps the original
+REFINE_MAX_MOVE = 0.5
+
+
+def refined_in_place(arm, joints: torch.Tensor, targets: torch.Tensor, steps: int) -> torch.Tensor:
+    """(B, J) poses -> each pose after `steps` damped least-squares steps where that misses the target by less and
+    stays within REFINE_MAX_MOVE of it; the pose as it was elsewhere."""
+    refined = damped_least_squares(arm, joints, targets, steps=steps)
+    closer = arm.task_error(refined, targets).norm(dim=-1) < arm.task_error(joints, targets).norm(dim=-1)
+    near = (refined - joints).norm(dim=-1) < REFINE_MAX_MOVE  # a planar heading wrapped past pi reads far: kept as was
+    keep = closer & near
+    return torch.where(keep[:, None], refined, joints)
 
 
 @torch.no_grad()
@@ -174,6 +198,17 @@ def measure_student(model: IKDiffusion, prior: PosePrior, config: DistillConfig,
     return metrics
 
 
+def starting_student(path: str, teacher_path: str) -> IKDiffusion:
+    """The student checkpoint `path` to start from; ValueError unless it is a student of the same teacher's file."""
+    payload = read_checkpoint(path)  # CheckpointError names a missing or broken file
+    record = payload.get("distill")
+    if not isinstance(record, dict):
+        raise ValueError(f"init: {path} is not a student (no distill record)")
+    if Path(str(record.get("teacher_path", ""))).name != Path(teacher_path).name:
+        raise ValueError(f"init: {path} is a student of {record.get('teacher')}, not of {Path(teacher_path).stem}")
+    return model_from_checkpoint(payload, path)
+
+
 def log_folder(config: DistillConfig) -> Path:
     output = Path(config.output)
     return Path(config.log_dir) if config.log_dir else output.parent / "logs" / output.stem
@@ -192,6 +227,8 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     teacher_payload = read_checkpoint(teacher_path)
     teacher, prior = teacher_solver.model, teacher_solver.prior
     student = model_from_checkpoint(teacher_payload, teacher_path).to(device)  # starts as the teacher
+    if config.init and not (config.resume and output.exists()):
+        student.load_state_dict(starting_student(config.init, teacher_path).state_dict())
     sampler = student_sampler(student, config)
     optimizer = torch.optim.AdamW(student.parameters(), lr=config.lr, weight_decay=0.0)
     data_generator = torch.Generator().manual_seed(config.seed)
@@ -232,7 +269,8 @@ def distill(config: DistillConfig, command: str = "") -> Path:
                 "metrics": metrics,
                 "distill": {
                     "teacher": str(config.teacher),
-                    "teacher_path": str(teacher_path),
+                    # the file name: a path of the training machine means nothing elsewhere
+                    "teacher_path": Path(teacher_path).name,
                     "teacher_metrics": teacher_payload["metrics"],
                     "teacher_train": teacher_payload["train"],
                     "teacher_sampler": config.teacher_sampler,

@@ -80,7 +80,7 @@ def apply_settings(app, config: VizConfig) -> None:
     from ikdp_viz.student import STUDENT, opening_sampler
 
     panel = app.panel
-    default_sampler, default_steps = opening_sampler(arm_kind(app.solver), app.session.student)
+    default_sampler, default_steps = opening_sampler(arm_kind(app.solver), app.session.student, app.asked_for_student)
     if config.sampler == STUDENT and app.session.student is None:
         fail(f"--sampler student: no distilled student of {app.solver.metadata['path']} among the shipped models")
     panel.samples.value = config.samples

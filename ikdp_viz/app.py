@@ -50,7 +50,7 @@ from ikdp_viz.scene_writer import SceneWriter
 from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
-from ikdp_viz.student import find_student
+from ikdp_viz.student import model_and_student
 from ikdp_viz.typed_target import target_from_numbers
 
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
@@ -77,7 +77,13 @@ class VizApp:
     ):
         """`student`: the model's few-step student (student.py); None: looked for in `checkpoint_folder`."""
         self.server = server
-        self.session = Session(solver, target, student or find_student(solver, checkpoint_folder))
+        if student is None:  # a student's file opens with its teacher beside it when the folder holds that
+            opened = solver
+            solver, student = model_and_student(solver, checkpoint_folder)
+            self.asked_for_student = student is opened
+        else:
+            self.asked_for_student = False
+        self.session = Session(solver, target, student)
         given = Path(solver.metadata.get("path", "model.pt"))
         # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
         # planar session could not open)

@@ -1,6 +1,6 @@
 """The Model dropdown's entries: the checkpoints in a folder that drive the kind of arm this viewer draws.
 
-Each file's kind of arm is read once per version (path, mtime, size): re-listing on every new
+Each file's kind of arm is read once per version (checkpoint_headers.py): re-listing on every new
 tab costs a stat per file.
 """
 
@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 
 import ikdp
-from ikdp.checkpoint import read_checkpoint
 from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.checkpoint_headers import checkpoint_header
 from ikdp_viz.messages import NewModel
 from ikdp_viz.session import initial_target
-from ikdp_viz.student import find_student
+from ikdp_viz.student import STUDENT, model_and_student
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:
@@ -28,12 +28,8 @@ def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]
 
 def checkpoint_arm_kind(path: Path) -> str | None:
     """The kind of arm ("planar", "chain") a checkpoint file's model drives; None if ikdp cannot read the file."""
-    try:
-        payload = read_checkpoint(path)
-    except ikdp.CheckpointError:
-        return None
-    arm = payload["model"].get("arm")  # absent or None: a planar arm described by its `lengths`
-    return str(arm.get("kind", "planar")) if isinstance(arm, dict) else "planar"
+    header = checkpoint_header(path)
+    return None if header is None else header.arm_kind
 
 
 class ModelChoices:
@@ -41,7 +37,6 @@ class ModelChoices:
 
     def __init__(self, paths: dict[str, Path], solver, folder: Path | None):
         self.folder = folder
-        self._kinds: dict[tuple[Path, float, int], str | None] = {}  # (path, mtime, size) -> arm kind
         self.paths = self.openable(paths, solver)
 
     def label_of(self, solver) -> str:
@@ -69,14 +64,7 @@ class ModelChoices:
         wanted = arm_kind(solver).name
         kept = {}
         for label, path in paths.items():
-            try:
-                stat = Path(path).stat()
-            except OSError:
-                continue
-            key = (Path(path), stat.st_mtime, stat.st_size)
-            if key not in self._kinds:
-                self._kinds[key] = checkpoint_arm_kind(Path(path))
-            if self._kinds[key] == wanted:
+            if checkpoint_arm_kind(Path(path)) == wanted:
                 kept[label] = path
         return kept
 
@@ -103,18 +91,22 @@ def switch_model(app, path: Path) -> bool:
     if arm_kind(solver) is not arm_kind(app.solver):  # the drawing loop draws one kind of arm
         return refused(f"{path}: a {arm_kind(solver).name} arm's model, this viewer draws a "
                        f"{arm_kind(app.solver).name} arm; start another with --ckpt {path}")  # fmt: skip
-    student = find_student(solver, app.models.folder)  # read here, not on the drawing loop
-    app.writer.run(lambda writer: adopt_model(app, writer, solver, student))
+    opened = solver
+    solver, student = model_and_student(solver, app.models.folder)  # read here, not on the drawing loop
+    app.writer.run(lambda writer: adopt_model(app, writer, solver, student, on_student=student is opened))
     return True
 
 
-def adopt_model(app, writer, solver, student=None) -> None:
+def adopt_model(app, writer, solver, student=None, on_student: bool = False) -> None:
     """Drawing loop's thread: `solver` (with its few-step `student`, or None) becomes the app's model; the old
-    target is asked again in its workspace."""
+    target is asked again in its workspace. `on_student`: the student's file was the one picked, so its sampler
+    is the one shown."""
     with app.session.lock:
         previous = app.session.target
         app.session.solver, app.session.student = solver, student
         app.sampling.offer_student()
+        if on_student:
+            writer.panel.sampler.value = STUDENT
         app.constraint_controls.rebuild(solver, writer)
         app.session.target = initial_target(solver, previous)
         writer.post(NewModel(solver, app.session.target))

@@ -156,13 +156,14 @@ def main(argv: list[str] | None = None) -> None:
     from ikdp_viz.command_line import checkpoint_path, command_target, fail, load_solver, target_flag_error
     from ikdp_viz.session import Session
     from ikdp_viz.solving import SolveRequest, solve
-    from ikdp_viz.student import STUDENT, find_student, opening_sampler
+    from ikdp_viz.student import STUDENT, model_and_student, opening_sampler
 
     config = tyro.cli(RecordConfig, args=argv, prog=PROGRAM, description=RecordConfig.__doc__)
     torch.set_num_threads(1)
     solver = load_solver(PROGRAM, checkpoint_path(config.ckpt))
-    student = find_student(solver, shipped_dir())  # as the viewer opens the model
-    default_sampler, default_steps = opening_sampler(arm_kind(solver), student)
+    opened = solver
+    solver, student = model_and_student(solver, shipped_dir())  # as the viewer opens the model
+    default_sampler, default_steps = opening_sampler(arm_kind(solver), student, student is opened)
     sampler = config.sampler or default_sampler
     if sampler not in (*SAMPLERS, STUDENT):
         fail(PROGRAM, f"--sampler {sampler}: expected one of {', '.join((*SAMPLERS, STUDENT))}")

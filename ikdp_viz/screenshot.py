@@ -169,7 +169,8 @@ def configured_app(args: ScreenshotConfig):
     app.panel.show_estimate.value = args.show_estimate
     app.panel.joint_space.show.value = args.joint_space
     app.panel.learn.compare.value = args.compare
-    app.panel.sampler.value = args.sampler or opening_sampler(arm_kind(solver), app.session.student)[0]
+    opening = opening_sampler(arm_kind(app.solver), app.session.student, app.asked_for_student)
+    app.panel.sampler.value = args.sampler or opening[0]
     if args.refine_steps:
         app.panel.refine_steps.value = args.refine_steps
         app.panel.refine.value = True

@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import ikdp
-from ikdp.checkpoint import read_checkpoint
+from ikdp_viz.checkpoint_headers import checkpoint_header
 
 STUDENT = "student"  # the sampler dropdown's and "compare with"'s name for the student
 TEACHER = "teacher"  # "compare with": the teacher's sampler the student was trained to match, from the same x_T
@@ -43,12 +43,39 @@ def find_student(teacher: ikdp.Solver, folder: Path | None) -> ikdp.Solver | Non
     if folder is None or not Path(folder).is_dir() or teacher.metadata.get("distill"):
         return None
     for path in sorted(Path(folder).glob("*.pt")):
-        try:
-            if is_student_of(read_checkpoint(path).get("distill"), teacher):
+        header = checkpoint_header(path)
+        if header is not None and is_student_of(header.distill, teacher):
+            try:
                 return ikdp.load(path, device=teacher.device)
-        except (ikdp.CheckpointError, OSError):
-            continue
+            except (ikdp.CheckpointError, OSError, RuntimeError):
+                continue
     return None
+
+
+def find_teacher(student: ikdp.Solver, folder: Path | None) -> ikdp.Solver | None:
+    """The teacher of `student` in `folder` (the file its record names, with the recorded metrics), loaded; None if
+    `student` is no student or its teacher is not there."""
+    record = student.metadata.get("distill")
+    if folder is None or not isinstance(record, dict):
+        return None
+    path = Path(folder) / Path(str(record.get("teacher_path", ""))).name
+    if not path.is_file() or checkpoint_header(path) is None:
+        return None
+    try:
+        teacher = ikdp.load(path, device=student.device)
+    except (ikdp.CheckpointError, OSError, RuntimeError):
+        return None
+    return teacher if is_student_of(record, teacher) else None
+
+
+def model_and_student(solver: ikdp.Solver, folder: Path | None) -> tuple[ikdp.Solver, ikdp.Solver | None]:
+    """The (model, student) a viewer opens for `solver`: a teacher with its student when the folder holds one; a
+    student opened itself comes with its teacher when the folder holds that (its own network then serves the
+    student's sampler, and the teacher's full denoising stays one click away); otherwise (solver, None)."""
+    teacher = find_teacher(solver, folder)
+    if teacher is not None:
+        return teacher, solver
+    return solver, find_student(solver, folder)
 
 
 def student_sampling(student: ikdp.Solver) -> tuple[str, int]:
@@ -97,9 +124,10 @@ def switch_label(on_student: bool, teacher: ikdp.Solver, student: ikdp.Solver) -
     return f"Show the student ({sampler.upper()}, {steps} steps)"
 
 
-def opening_sampler(kind, student: ikdp.Solver | None) -> tuple[str, int]:
-    """The (sampler, steps) a viewer opens on for an arm of `kind` (arm_kinds): the student where the kind opens
-    on one and there is one (a robot's), else the kind's own (the paper's DDPM); the steps apply to a sampler
-    that can skip some."""
+def opening_sampler(kind, student: ikdp.Solver | None, asked_for_student: bool = False) -> tuple[str, int]:
+    """The (sampler, steps) a viewer opens on for an arm of `kind` (arm_kinds): the student where there is one and
+    the kind opens on it (a robot's) or the student's file was the one asked for, else the kind's own (the paper's
+    DDPM); the steps apply to a sampler that can skip some."""
     sampler, steps = kind.default_sampler
-    return (STUDENT if student is not None and kind.opens_on_student else sampler), steps
+    first = student is not None and (kind.opens_on_student or asked_for_student)
+    return (STUDENT if first else sampler), steps

@@ -6,7 +6,15 @@ import torch
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.describe import describe
-from ikdp.distill import DistillConfig, distill, main, spread_miss, student_sampler, unrolled_student
+from ikdp.distill import (
+    DistillConfig,
+    distill,
+    main,
+    refined_in_place,
+    spread_miss,
+    student_sampler,
+    unrolled_student,
+)
 from ikdp.train import parse_config
 
 
@@ -61,7 +69,7 @@ def test_a_student_saves_resumes_and_solves_in_its_own_steps(tiny_checkpoint, tm
     student = ikdp.load(straight)
     record = student.metadata["distill"]
     assert (record["sampler"], record["steps"], record["spacing"]) == ("ddim", 2, "quadratic")
-    assert record["teacher_path"] == str(tiny_checkpoint)
+    assert record["teacher_path"] == tiny_checkpoint.name  # a file name: another machine has other paths
     assert set(a["metrics"]) >= {"tip_error_median", "tip_error_mean", "step"}
     out = student.solve([[1.0, 0.5]], num_samples=4, sampler="ddim", steps=2)
     assert out.network_evaluations == 2 and out.timesteps == [19, 0]
@@ -90,6 +98,8 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--teacher", "no_such_model"], "no_such_model"),
         (["--spread-weight", "1"], "spread_weight: needs noises_per_target 2 or more"),
         (["--noises-per-target", "3", "--batch", "256"], "batch: got 256, expected a multiple of noises_per_target 3"),
+        (["--refine-teacher-steps", "-1"], "refine_teacher_steps: got -1, expected 0 or more"),
+        (["--init", "no_such_student.pt"], "no_such_student.pt"),
     ],
 )
 def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):
@@ -117,3 +127,47 @@ def test_a_run_with_the_spread_term_draws_several_noises_per_target(tiny_checkpo
     config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, spread_weight=1.0, steps=2)
     student = torch.load(distill(config), weights_only=True)
     assert student["train"]["spread_weight"] == 1.0 and student["train"]["noises_per_target"] == 4
+
+
+def test_the_teachers_poses_are_refined_in_their_own_mode_only(tiny_chain_checkpoint):
+    solver = ikdp.load(tiny_chain_checkpoint)
+    arm = solver.model.arm
+    generator = torch.Generator().manual_seed(0)
+    solutions = solver.prior.sample(64, arm, generator=generator)
+    targets = arm.end_effector(solutions)
+    near = arm.normalize_joints(solutions + 0.02 * torch.randn(solutions.shape, generator=generator))
+    refined = refined_in_place(arm, near, targets, steps=3)
+    before, after = arm.task_error(near, targets).norm(dim=-1), arm.task_error(refined, targets).norm(dim=-1)
+    assert (after <= before).all() and after.median() < 0.1 * before.median()  # a near pose reaches its target
+    far = arm.normalize_joints(solutions + 2.0)  # far from any solution of its target: the solver would jump
+    moved = refined_in_place(arm, far, targets, steps=3)
+    jumped = (moved - far).norm(dim=-1) > 0
+    assert ((moved - far).norm(dim=-1)[jumped] < 0.5).all()  # no pose is moved past the bound
+    assert not jumped.all()
+
+
+def test_a_run_starts_from_a_student_of_the_same_teacher_and_refuses_another(
+    tiny_checkpoint, tmp_path, capsys, monkeypatch
+):
+    first = distill(small_config(tmp_path, tiny_checkpoint, steps=2))
+    config = small_config(
+        tmp_path, tiny_checkpoint, steps=1, init=str(first), refine_teacher_steps=2, output=str(tmp_path / "next.pt")
+    )
+    state = torch.load(first, weights_only=True)["state_dict"]
+    started = {}
+    original = torch.optim.AdamW.step
+
+    def record_the_start(optimizer, *args, **kwargs):  # the weights as the first step finds them
+        if not started:
+            started.update({id(p): p.detach().clone() for group in optimizer.param_groups for p in group["params"]})
+        return original(optimizer, *args, **kwargs)
+
+    monkeypatch.setattr(torch.optim.AdamW, "step", record_the_start)
+    student = torch.load(distill(config), weights_only=True)
+    assert sorted(v.sum().item() for v in started.values()) == pytest.approx(
+        sorted(v.sum().item() for v in state.values() if v.dtype.is_floating_point), rel=1e-5
+    )
+    assert student["train"]["refine_teacher_steps"] == 2 and student["distill"]["teacher_path"] == tiny_checkpoint.name
+    with pytest.raises(SystemExit):
+        main(["--teacher", str(tmp_path / "next.pt"), "--init", str(first), "--output", str(tmp_path / "x.pt")])
+    assert "is a student of" in capsys.readouterr().err

@@ -13,7 +13,7 @@ from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
 from ikdp_viz.messages import ShowSolve
-from ikdp_viz.student import STUDENT, TEACHER, find_student, is_student_of
+from ikdp_viz.student import STUDENT, TEACHER, find_student, is_student_of, model_and_student
 
 K = 4
 STUDENT_STEPS = 2
@@ -144,3 +144,43 @@ def test_a_model_without_a_student_takes_the_student_away(app, tiny_chain_checkp
     assert app.session.student is None and STUDENT not in panel.sampler.options
     assert STUDENT not in panel.learn.compare.options and not panel.teacher_student.visible
     assert panel.sampler.value == "ddpm" and app.solved.request.solver is app.solver
+
+
+def test_a_students_file_opens_with_its_teacher_beside_it(models, tiny_chain_checkpoint):
+    teacher_path, student_path, folder = models
+    student = ikdp.load(student_path)
+    teacher, paired = model_and_student(student, folder)
+    assert paired is student and teacher.metadata["path"] == str(folder / "panda_teacher.pt")
+    assert model_and_student(student, tiny_chain_checkpoint.parent)[1] is None  # its teacher is not there
+    alone = ikdp.load(tiny_chain_checkpoint)
+    assert model_and_student(alone, folder) == (alone, None)
+    with running_app(student, solve_now=False, animation_seconds=0.0, checkpoint_folder=folder) as app:
+        assert app.session.student is student and app.solver.metadata["path"] == teacher.metadata["path"]
+        assert app.asked_for_student  # the command line then opens on the student, planar arm or robot
+
+
+def test_picking_a_students_file_shows_the_student_with_its_teacher(app, models, tiny_chain_checkpoint):
+    teacher_path, student_path, folder = models
+    assert app.load_checkpoint(tiny_chain_checkpoint)
+    settle(app)
+    assert app.session.student is None
+    assert app.load_checkpoint(student_path)
+    settle(app)
+    assert app.solver.metadata["path"] == str(teacher_path) and app.session.student is not None
+    assert app.panel.sampler.value == STUDENT and app.solved.request.solver is app.session.student
+
+
+def test_a_folders_checkpoints_are_read_once_for_the_dropdown_and_the_student(models, monkeypatch):
+    import ikdp_viz.checkpoint_headers as headers
+    from ikdp_viz.model_choices import ModelChoices, list_checkpoints
+
+    teacher_path, _, folder = models
+    teacher = ikdp.load(teacher_path)
+    reads = []
+    real = headers.read_checkpoint
+    monkeypatch.setattr(headers, "_headers", {})
+    monkeypatch.setattr(headers, "read_checkpoint", lambda path: reads.append(path) or real(path))
+    ModelChoices(list_checkpoints(folder), teacher, folder)
+    assert find_student(teacher, folder) is not None
+    ModelChoices(list_checkpoints(folder), teacher, folder).refresh(teacher)
+    assert sorted(reads) == sorted(folder.glob("*.pt"))  # each file once
