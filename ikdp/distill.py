@@ -59,6 +59,10 @@ class DistillConfig:
     # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.43 x the teacher's)
     spread_weight: float = 0.0
     noises_per_target: int = 1  # noises drawn for each target of a batch (the spread term needs 2 or more)
+    # weight of the distribution term: the energy distance between a target's student poses and as many samples of
+    # the teacher's DDPM for it, from other noises (0: off). Matching the teacher's ODE caps the student at the
+    # ODE's fidelity, which on the relaxed planar model is 2-3 times further from the posterior than the DDPM's
+    distribution_weight: float = 0.0
     # damped least-squares steps taken from the teacher's pose before the student is asked to match it (0: none):
     # the goal then reaches the target in the teacher's own mode, so matching it and reaching the target agree
     refine_teacher_steps: int = 0
@@ -87,7 +91,10 @@ def validate(config: DistillConfig) -> None:
         if not value > 0:
             raise ValueError(f"{name}: got {value}, expected a positive number")
     nonnegative = {"threads": config.threads, "eval_targets": config.eval_targets}
-    nonnegative |= {"refine_teacher_steps": config.refine_teacher_steps}
+    nonnegative |= {
+        "refine_teacher_steps": config.refine_teacher_steps,
+        "distribution_weight": config.distribution_weight,
+    }
     nonnegative |= {"tip_loss_weight": config.tip_loss_weight, "spread_weight": config.spread_weight}
     for name, value in nonnegative.items():
         if value < 0:
@@ -96,8 +103,9 @@ def validate(config: DistillConfig) -> None:
         raise ValueError(
             f"batch: got {config.batch}, expected a multiple of noises_per_target {config.noises_per_target}"
         )
-    if config.spread_weight > 0 and config.noises_per_target < 2:
-        raise ValueError("spread_weight: needs noises_per_target 2 or more (pairs of poses for one target)")
+    for name in ("spread_weight", "distribution_weight"):
+        if getattr(config, name) > 0 and config.noises_per_target < 2:
+            raise ValueError(f"{name}: needs noises_per_target 2 or more (pairs of poses for one target)")
 
 
 def student_sampler(model: IKDiffusion, config: DistillConfig) -> DDIMSampler:
@@ -137,6 +145,31 @@ def spread_miss(student: torch.Tensor, teacher: torch.Tensor, per_target: int) -
         return distances.sum(dim=(1, 2)) / (per_target * (per_target - 1))  # the diagonal's zeros left out
 
     return (mean_distance(student) - mean_distance(teacher)).square()
+
+
+def energy_distance(student: torch.Tensor, reference: torch.Tensor, per_target: int) -> torch.Tensor:
+    """(B, D) student and reference poses, `per_target` consecutive rows per target -> (B // per_target,) each target's
+    energy distance 2 E|x - y| - E|x - x'| - E|y - y'| (Szekely and Rizzo): zero when the two sets are drawn from one
+    distribution, and its gradient moves the student's poses toward the reference's spread as well as its place."""
+
+    def mean_distance(first: torch.Tensor, second: torch.Tensor, same: bool) -> torch.Tensor:
+        a, b = first.unflatten(0, (-1, per_target)), second.unflatten(0, (-1, per_target))  # (G, K, D)
+        distances = ((a[:, :, None] - b[:, None, :]).square().sum(-1) + 1e-12).sqrt()  # (G, K, K); no NaN at zero
+        pairs = per_target * (per_target - 1) if same else per_target**2  # a set's own diagonal left out
+        return distances.sum(dim=(1, 2)) / pairs
+
+    cross = mean_distance(student, reference, same=False)
+    return 2 * cross - mean_distance(student, student, same=True) - mean_distance(reference, reference, same=True)
+
+
+@torch.no_grad()
+def teacher_samples(teacher: IKDiffusion, targets: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """One sample of the teacher's full DDPM per row of `targets` (B, target_dim), in the representation's
+    coordinates (B, D): the reference distribution of the distribution term."""
+    noise = torch.randn((len(targets), 1, teacher.representation.dim), generator=generator).to(targets.device)
+    on_cpu = targets.device.type == "cpu"  # the data stream's generator is a CPU one; elsewhere the device's own
+    trajectory = teacher.sample(targets, sampler="ddpm", initial_noise=noise, generator=generator if on_cpu else None)
+    return teacher.representation.encode(trajectory.headings[:, 0]).clone()
 
 
 @torch.no_grad()
@@ -308,6 +341,11 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             loss = (match + config.tip_loss_weight * consistency).mean()
             spread = spread_miss(pose, goal, per_target) if per_target > 1 else match.new_zeros(1)
             loss = loss + config.spread_weight * spread.mean()
+            distribution = match.new_zeros(1)
+            if config.distribution_weight:
+                reference = teacher_samples(teacher, targets, data_generator)
+                distribution = energy_distance(pose, reference, per_target)
+                loss = loss + config.distribution_weight * distribution.mean()
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
@@ -317,6 +355,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
                 writer.add_scalar("train/loss", float(loss.detach()), step)
                 writer.add_scalar("train/teacher_match", float(match.mean()), step)
                 writer.add_scalar("train/spread_miss", float(spread.mean()), step)
+                writer.add_scalar("train/energy_distance", float(distribution.mean()), step)
                 writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean()), step)
                 writer.add_scalar("train/lr", optimizer.param_groups[0]["lr"], step)
                 progress.set_postfix(loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.sqrt().mean()):.4f}")

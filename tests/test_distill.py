@@ -9,6 +9,7 @@ from ikdp.describe import describe
 from ikdp.distill import (
     DistillConfig,
     distill,
+    energy_distance,
     main,
     refined_in_place,
     spread_miss,
@@ -99,6 +100,7 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--spread-weight", "1"], "spread_weight: needs noises_per_target 2 or more"),
         (["--noises-per-target", "3", "--batch", "256"], "batch: got 256, expected a multiple of noises_per_target 3"),
         (["--refine-teacher-steps", "-1"], "refine_teacher_steps: got -1, expected 0 or more"),
+        (["--distribution-weight", "1"], "distribution_weight: needs noises_per_target 2 or more"),
         (["--init", "no_such_student.pt"], "no_such_student.pt"),
     ],
 )
@@ -171,3 +173,29 @@ def test_a_run_starts_from_a_student_of_the_same_teacher_and_refuses_another(
     with pytest.raises(SystemExit):
         main(["--teacher", str(tmp_path / "next.pt"), "--init", str(first), "--output", str(tmp_path / "x.pt")])
     assert "is a student of" in capsys.readouterr().err
+
+
+def test_the_energy_distance_is_near_zero_for_one_distribution_and_not_for_a_shifted_or_collapsed_one():
+    generator = torch.Generator().manual_seed(0)
+    reference = torch.randn((50 * 16, 3), generator=generator)  # 50 targets, 16 samples each
+    same = torch.randn((50 * 16, 3), generator=generator)
+    shifted = same + torch.tensor([1.0, 0.0, 0.0])
+    collapsed = same.unflatten(0, (50, 16)).mean(1, keepdim=True).expand(50, 16, 3).reshape(-1, 3).clone()
+    collapsed.requires_grad_(True)
+    assert abs(float(energy_distance(same, reference, 16).mean())) < 0.05
+    assert float(energy_distance(shifted, reference, 16).mean()) > 0.3
+    distance = energy_distance(collapsed, reference, 16)
+    assert float(distance.detach().mean()) > 0.3
+    distance.sum().backward()
+    assert torch.isfinite(collapsed.grad).all()  # no NaN where poses coincide
+
+
+def test_a_run_with_the_distribution_term_samples_the_teachers_ddpm(tiny_checkpoint, tmp_path, monkeypatch):
+    import ikdp.distill as distill_module
+
+    calls = []
+    real = distill_module.teacher_samples
+    monkeypatch.setattr(distill_module, "teacher_samples", lambda *a: calls.append(len(a[1])) or real(*a))
+    config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, steps=2)
+    student = torch.load(distill(config), weights_only=True)
+    assert calls == [16, 16] and student["train"]["distribution_weight"] == 1.0
