@@ -58,3 +58,16 @@ def test_the_obstacle_benchmark_blocks_each_valid_solution_and_certifies_another
     assert bool(within_pose_tolerance(arm, witnesses[:, None], targets).all())  # another one reaches the target
     grown = ikdp.Obstacles(placement["centers"], placement["radii"] + WITNESS_CLEARANCE - 1e-6)
     assert bool((ConstraintSet(arm, [grown], 6, 1).violation(witnesses[:, None]) == 0).all())  # and is 1 cm clear
+
+
+def test_the_seeded_fidelity_rows_are_read_or_refused_in_one_line():
+    from benchmarks.fidelity_seeds import parse_row
+
+    assert parse_row("ikdp_n4_relaxed_mlp@ddpm") == ("ikdp_n4_relaxed_mlp", "ddpm", None, None)
+    assert parse_row("student.pt@ddim:4:quadratic") == ("student.pt", "ddim", 4, "quadratic")
+    result = subprocess.run(
+        [sys.executable, "-m", "benchmarks.fidelity_seeds", "--rows", "m@ddim:four"],
+        cwd=REPO, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert "row 'm@ddim:four': expected checkpoint@sampler[:steps[:spacing]]" in result.stderr
