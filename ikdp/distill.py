@@ -9,6 +9,8 @@ the few-step sampler unrolled and trained end to end, as in progressive distilla
     teacher: x_T --(teacher_sampler, teacher_steps)--> x0_teacher                 (no gradient)
     student: x_T --(DDIM, student_steps, the student's x̂0 at each step)--> x0_student
     loss = |x0_student - x0_teacher|^2 + tip_loss_weight * FK miss of x0_student  (model.consistency_miss)
+           + spread_weight * (mean distance of a target's student poses - the teacher's)^2   (spread_miss)
+           + distribution_weight * energy distance to the teacher's DDPM samples      (energy_distance)
 
 The noise picks the teacher's mode, so matching the teacher from the same x_T keeps the spread of
 its samples (no averaging of elbow-up and elbow-down into neither); the FK term pulls the student's
@@ -231,13 +233,14 @@ def measure_student(model: IKDiffusion, prior: PosePrior, config: DistillConfig,
     return metrics
 
 
-def starting_student(path: str, teacher_path: str) -> IKDiffusion:
-    """The student checkpoint `path` to start from; ValueError unless it is a student of the same teacher's file."""
+def starting_student(path: str, teacher_path: str, teacher_model: dict) -> IKDiffusion:
+    """The student checkpoint `path` to start from; ValueError unless it is a student of the same teacher's file,
+    with the teacher's network (`teacher_model`: its checkpoint's model config)."""
     payload = read_checkpoint(path)  # CheckpointError names a missing or broken file
     record = payload.get("distill")
     if not isinstance(record, dict):
         raise ValueError(f"init: {path} is not a student (no distill record)")
-    if Path(str(record.get("teacher_path", ""))).name != Path(teacher_path).name:
+    if Path(str(record.get("teacher_path", ""))).name != Path(teacher_path).name or payload["model"] != teacher_model:
         raise ValueError(f"init: {path} is a student of {record.get('teacher')}, not of {Path(teacher_path).stem}")
     return model_from_checkpoint(payload, path)
 
@@ -261,7 +264,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     teacher, prior = teacher_solver.model, teacher_solver.prior
     student = model_from_checkpoint(teacher_payload, teacher_path).to(device)  # starts as the teacher
     if config.init and not (config.resume and output.exists()):
-        student.load_state_dict(starting_student(config.init, teacher_path).state_dict())
+        student.load_state_dict(starting_student(config.init, teacher_path, teacher_payload["model"]).state_dict())
     sampler = student_sampler(student, config)
     optimizer = torch.optim.AdamW(student.parameters(), lr=config.lr, weight_decay=0.0)
     data_generator = torch.Generator().manual_seed(config.seed)
