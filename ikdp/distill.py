@@ -37,6 +37,7 @@ import torch
 from tqdm import tqdm
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
+from ikdp.distill_reference import PoseStream, energy_distance
 from ikdp.model import IKDiffusion
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
@@ -65,6 +66,9 @@ class DistillConfig:
     # the teacher's DDPM for it, from other noises (0: off). Matching the teacher's ODE caps the student at the
     # ODE's fidelity, which on the relaxed planar model is 2-3 times further from the posterior than the DDPM's
     distribution_weight: float = 0.0
+    # targets whose DDPM samples (noises_per_target each) are drawn once, before training, and reused by every step
+    # (0: drawn afresh each step, where the teacher's DDPM costs most of a step)
+    reference_pool: int = 0
     # damped least-squares steps taken from the teacher's pose before the student is asked to match it (0: none):
     # the goal then reaches the target in the teacher's own mode, so matching it and reaching the target agree
     refine_teacher_steps: int = 0
@@ -96,6 +100,7 @@ def validate(config: DistillConfig) -> None:
     nonnegative |= {
         "refine_teacher_steps": config.refine_teacher_steps,
         "distribution_weight": config.distribution_weight,
+        "reference_pool": config.reference_pool,
     }
     nonnegative |= {"tip_loss_weight": config.tip_loss_weight, "spread_weight": config.spread_weight}
     for name, value in nonnegative.items():
@@ -147,31 +152,6 @@ def spread_miss(student: torch.Tensor, teacher: torch.Tensor, per_target: int) -
         return distances.sum(dim=(1, 2)) / (per_target * (per_target - 1))  # the diagonal's zeros left out
 
     return (mean_distance(student) - mean_distance(teacher)).square()
-
-
-def energy_distance(student: torch.Tensor, reference: torch.Tensor, per_target: int) -> torch.Tensor:
-    """(B, D) student and reference poses, `per_target` consecutive rows per target -> (B // per_target,) each target's
-    energy distance 2 E|x - y| - E|x - x'| - E|y - y'| (Szekely and Rizzo): zero when the two sets are drawn from one
-    distribution, and its gradient moves the student's poses toward the reference's spread as well as its place."""
-
-    def mean_distance(first: torch.Tensor, second: torch.Tensor, same: bool) -> torch.Tensor:
-        a, b = first.unflatten(0, (-1, per_target)), second.unflatten(0, (-1, per_target))  # (G, K, D)
-        distances = ((a[:, :, None] - b[:, None, :]).square().sum(-1) + 1e-12).sqrt()  # (G, K, K); no NaN at zero
-        pairs = per_target * (per_target - 1) if same else per_target**2  # a set's own diagonal left out
-        return distances.sum(dim=(1, 2)) / pairs
-
-    cross = mean_distance(student, reference, same=False)
-    return 2 * cross - mean_distance(student, student, same=True) - mean_distance(reference, reference, same=True)
-
-
-@torch.no_grad()
-def teacher_samples(teacher: IKDiffusion, targets: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-    """One sample of the teacher's full DDPM per row of `targets` (B, target_dim), in the representation's
-    coordinates (B, D): the reference distribution of the distribution term."""
-    noise = torch.randn((len(targets), 1, teacher.representation.dim), generator=generator).to(targets.device)
-    on_cpu = targets.device.type == "cpu"  # the data stream's generator is a CPU one; elsewhere the device's own
-    trajectory = teacher.sample(targets, sampler="ddpm", initial_noise=noise, generator=generator if on_cpu else None)
-    return teacher.representation.encode(trajectory.headings[:, 0]).clone()
 
 
 @torch.no_grad()
@@ -324,6 +304,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         writer.add_scalar("eval/tip_error_median", metrics.get("tip_error_median", float("nan")), step)
 
     arm = student.arm
+    stream = PoseStream(teacher, prior, config, device)  # a reference pool is drawn here, before the first step
     interrupted = False
     progress = tqdm(total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True)
     student.train()
@@ -332,10 +313,9 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             for group in optimizer.param_groups:
                 group["lr"] = config.lr * budget.lr_factor(step, elapsed())
             per_target = config.noises_per_target  # each target's poses on consecutive rows
-            joints = prior.sample(config.batch // per_target, arm, generator=data_generator)
-            joints = joints.repeat_interleave(per_target, dim=0)  # (B, J)
+            joints, reference = stream.draw(data_generator)  # (B, J); the DDPM's samples (B, D) or None
             noise = torch.randn((config.batch, student.representation.dim), generator=data_generator)  # x_T (B, D)
-            joints, noise = joints.to(device), noise.to(device)
+            noise = noise.to(device)
             targets = arm.end_effector(joints)  # (B, target_dim)
             goal = teacher_poses(teacher, config, noise, targets)  # (B, D)
             pose = unrolled_student(student, sampler, noise, targets)  # (B, D)
@@ -345,8 +325,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             spread = spread_miss(pose, goal, per_target) if per_target > 1 else match.new_zeros(1)
             loss = loss + config.spread_weight * spread.mean()
             distribution = match.new_zeros(1)
-            if config.distribution_weight:
-                reference = teacher_samples(teacher, targets, data_generator)
+            if reference is not None:
                 distribution = energy_distance(pose, reference, per_target)
                 loss = loss + config.distribution_weight * distribution.mean()
             optimizer.zero_grad(set_to_none=True)

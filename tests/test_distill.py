@@ -1,5 +1,7 @@
 """ikdp.distill: the student's unrolled training loop is the solver's loop, and a run saves, resumes and loads."""
 
+from dataclasses import replace
+
 import pytest
 import torch
 
@@ -191,11 +193,31 @@ def test_the_energy_distance_is_near_zero_for_one_distribution_and_not_for_a_shi
 
 
 def test_a_run_with_the_distribution_term_samples_the_teachers_ddpm(tiny_checkpoint, tmp_path, monkeypatch):
-    import ikdp.distill as distill_module
+    import ikdp.distill_reference as reference_module
 
     calls = []
-    real = distill_module.teacher_samples
-    monkeypatch.setattr(distill_module, "teacher_samples", lambda *a: calls.append(len(a[1])) or real(*a))
+    real = reference_module.teacher_samples
+    monkeypatch.setattr(reference_module, "teacher_samples", lambda *a: calls.append(len(a[1])) or real(*a))
     config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, steps=2)
     student = torch.load(distill(config), weights_only=True)
-    assert calls == [16, 16] and student["train"]["distribution_weight"] == 1.0
+    assert calls == [16, 16] and student["train"]["distribution_weight"] == 1.0  # one DDPM batch a step
+
+
+def test_a_reference_pool_is_drawn_once_and_every_step_picks_its_targets_from_it(tiny_checkpoint, tmp_path):
+    from ikdp.distill_reference import PoseStream
+
+    solver = ikdp.load(tiny_checkpoint)
+    config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, reference_pool=6)
+    stream = PoseStream(solver.model, solver.prior, config, torch.device("cpu"))
+    pool_joints, pool_samples = stream.pool
+    assert pool_joints.shape[0] == 6 and pool_samples.shape == (6, 4, solver.model.representation.dim)
+    joints, reference = stream.draw(torch.Generator().manual_seed(0))
+    assert joints.shape == (16, pool_joints.shape[1]) and reference.shape == (16, pool_samples.shape[-1])
+    for row in range(0, 16, 4):  # each target's four rows: one pool entry, its own four samples
+        entry = int((pool_joints - joints[row]).abs().sum(-1).argmin())
+        assert torch.equal(joints[row : row + 4], pool_joints[entry].expand(4, -1))
+        assert torch.equal(reference[row : row + 4], pool_samples[entry])
+    again = PoseStream(solver.model, solver.prior, config, torch.device("cpu")).pool  # a resume draws the same pool
+    assert torch.equal(again[1], pool_samples)
+    student = torch.load(distill(replace(config, steps=2)), weights_only=True)
+    assert student["train"]["reference_pool"] == 6
