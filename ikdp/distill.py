@@ -213,16 +213,24 @@ def measure_student(model: IKDiffusion, prior: PosePrior, config: DistillConfig,
     return metrics
 
 
-def starting_student(path: str, teacher_path: str, teacher_model: dict) -> IKDiffusion:
+def starting_student(path: str, teacher_path: str, teacher: IKDiffusion) -> IKDiffusion:
     """The student checkpoint `path` to start from; ValueError unless it is a student of the same teacher's file,
-    with the teacher's network (`teacher_model`: its checkpoint's model config)."""
+    with the teacher's network (the same weights' names and shapes: a config written by a later version of ikdp
+    lists more defaults)."""
     payload = read_checkpoint(path)  # CheckpointError names a missing or broken file
     record = payload.get("distill")
     if not isinstance(record, dict):
         raise ValueError(f"init: {path} is not a student (no distill record)")
-    if Path(str(record.get("teacher_path", ""))).name != Path(teacher_path).name or payload["model"] != teacher_model:
+    if Path(str(record.get("teacher_path", ""))).name != Path(teacher_path).name:
         raise ValueError(f"init: {path} is a student of {record.get('teacher')}, not of {Path(teacher_path).stem}")
-    return model_from_checkpoint(payload, path)
+    student = model_from_checkpoint(payload, path)
+
+    def shapes(model: IKDiffusion) -> dict:
+        return {name: tuple(value.shape) for name, value in model.state_dict().items()}
+
+    if shapes(student) != shapes(teacher):
+        raise ValueError(f"init: {path} has another network than its teacher {Path(teacher_path).stem}")
+    return student
 
 
 def log_folder(config: DistillConfig) -> Path:
@@ -244,7 +252,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     teacher, prior = teacher_solver.model, teacher_solver.prior
     student = model_from_checkpoint(teacher_payload, teacher_path).to(device)  # starts as the teacher
     if config.init and not (config.resume and output.exists()):
-        student.load_state_dict(starting_student(config.init, teacher_path, teacher_payload["model"]).state_dict())
+        student.load_state_dict(starting_student(config.init, teacher_path, student).state_dict())
     sampler = student_sampler(student, config)
     optimizer = torch.optim.AdamW(student.parameters(), lr=config.lr, weight_decay=0.0)
     data_generator = torch.Generator().manual_seed(config.seed)

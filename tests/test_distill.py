@@ -221,3 +221,18 @@ def test_a_reference_pool_is_drawn_once_and_every_step_picks_its_targets_from_it
     assert torch.equal(again[1], pool_samples)
     student = torch.load(distill(replace(config, steps=2)), weights_only=True)
     assert student["train"]["reference_pool"] == 6
+
+
+def test_init_refuses_a_student_of_another_network_under_the_teachers_name(
+    tiny_checkpoint, tiny_chain_checkpoint, tmp_path, capsys
+):
+    import shutil
+
+    first = distill(small_config(tmp_path, tiny_checkpoint, steps=1))
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(tiny_chain_checkpoint, other / tiny_checkpoint.name)  # the teacher's file name, another network
+    with pytest.raises(SystemExit):
+        main(["--teacher", str(other / tiny_checkpoint.name), "--init", str(first), "--output", str(other / "s.pt")])
+    error = capsys.readouterr().err
+    assert "has another network than its teacher" in error and "Traceback" not in error
