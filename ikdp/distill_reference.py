@@ -3,7 +3,7 @@
 `ikdp.distill --distribution-weight w` adds each target's energy distance between the student's poses and as many
 samples of the teacher's full DDPM (other noises, the same target). The teacher's deterministic sampler the student
 is matched to is itself further from the true posterior than its DDPM (relaxed planar model, five seeds: excess
-MMD² 0.00226 for DPM-Solver++ 16 against 0.00090), so matching it alone caps the student there.
+MMD² 0.00226 for DPM-Solver++ 16 against 0.00091), so matching it alone caps the student there.
 
 The DDPM costs most of a step (80-100 evaluations of the teacher against the student's 4): `--reference-pool P`
 draws P targets and their samples once, before training (the same seed, the same pool on a resume), and each
