@@ -37,7 +37,7 @@ import torch
 from tqdm import tqdm
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
-from ikdp.distill_reference import PoseStream, energy_distance
+from ikdp.distill_reference import PoseStream, energy_distance, mean_distance
 from ikdp.model import IKDiffusion
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
@@ -144,14 +144,7 @@ def spread_miss(student: torch.Tensor, teacher: torch.Tensor, per_target: int) -
     noises: zero when the student's samples are as spread as the teacher's, wherever each one lands. (Matching the
     distances pair by pair started 20 times larger than the other terms on the Panda: the teacher's 4- and 16-step
     runs already differ pair by pair.)"""
-
-    def mean_distance(poses: torch.Tensor) -> torch.Tensor:
-        grouped = poses.unflatten(0, (-1, per_target))  # (G, K, D)
-        difference = grouped[:, :, None] - grouped[:, None, :]
-        distances = (difference.square().sum(-1) + 1e-12).sqrt()  # (G, K, K); the epsilon: no NaN at zero
-        return distances.sum(dim=(1, 2)) / (per_target * (per_target - 1))  # the diagonal's zeros left out
-
-    return (mean_distance(student) - mean_distance(teacher)).square()
+    return (mean_distance(student, student, per_target) - mean_distance(teacher, teacher, per_target)).square()
 
 
 @torch.no_grad()

@@ -23,19 +23,22 @@ from ikdp.priors import PosePrior
 POOL_CHUNK = 512  # rows of one DDPM call while the pool is drawn
 
 
+def mean_distance(first: torch.Tensor, second: torch.Tensor, per_target: int) -> torch.Tensor:
+    """(B, D) and (B, D) poses, `per_target` consecutive rows per target -> (B // per_target,) the mean distance
+    between a target's rows of `first` and its rows of `second`; within one set (`second` is `first`) its own
+    diagonal's zeros are left out."""
+    a, b = first.unflatten(0, (-1, per_target)), second.unflatten(0, (-1, per_target))  # (G, K, D)
+    distances = ((a[:, :, None] - b[:, None, :]).square().sum(-1) + 1e-12).sqrt()  # (G, K, K); the epsilon: no NaN
+    pairs = per_target * (per_target - 1) if second is first else per_target**2
+    return distances.sum(dim=(1, 2)) / pairs
+
+
 def energy_distance(student: torch.Tensor, reference: torch.Tensor, per_target: int) -> torch.Tensor:
     """(B, D) student and reference poses, `per_target` consecutive rows per target -> (B // per_target,) each target's
     energy distance 2 E|x - y| - E|x - x'| - E|y - y'| (Szekely and Rizzo): zero when the two sets are drawn from one
     distribution, and its gradient moves the student's poses toward the reference's spread as well as its place."""
-
-    def mean_distance(first: torch.Tensor, second: torch.Tensor, same: bool) -> torch.Tensor:
-        a, b = first.unflatten(0, (-1, per_target)), second.unflatten(0, (-1, per_target))  # (G, K, D)
-        distances = ((a[:, :, None] - b[:, None, :]).square().sum(-1) + 1e-12).sqrt()  # (G, K, K); no NaN at zero
-        pairs = per_target * (per_target - 1) if same else per_target**2  # a set's own diagonal left out
-        return distances.sum(dim=(1, 2)) / pairs
-
-    cross = mean_distance(student, reference, same=False)
-    return 2 * cross - mean_distance(student, student, same=True) - mean_distance(reference, reference, same=True)
+    cross = mean_distance(student, reference, per_target)
+    return 2 * cross - mean_distance(student, student, per_target) - mean_distance(reference, reference, per_target)
 
 
 @torch.no_grad()
