@@ -4,7 +4,8 @@ pytorch_kinematics' PseudoInverseIK tuned to the same share, in the same run (is
     OMP_NUM_THREADS=1 python benchmarks/few_step_pipeline.py --checkpoints ikdp_panda ikdp_panda_cpu
 
 On robot_benchmark's 1000 held-out pose targets, every IKDP pipeline `name:steps:spacing+refine` (K = 16
-samples, then `refine` limit-aware DLS steps) and every PseudoInverseIK setting `retriesxiterations` is timed
+samples, then `refine` limit-aware DLS steps; a `/int8` suffix samples with the model's int8 weights,
+`ikdp.load(..., precision="int8")`) and every PseudoInverseIK setting `retriesxiterations` is timed
 once per round, round-robin (so the machine's load hits all alike), `rounds` rounds, median quoted; a target
 is solved when one of its poses is within 1 mm and 1 degree. For each, the fastest row at a share of at least
 `success` is picked, and the ratio IKDP / PseudoInverseIK printed. Writes benchmarks/results/few_step_pipeline.json.
@@ -30,7 +31,7 @@ RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
 @dataclass(frozen=True)
 class PipelineConfig:
     checkpoints: tuple[str, ...] = ("ikdp_panda", "ikdp_panda_cpu")  # paths or shipped names
-    pipelines: tuple[str, ...] = (  # name:steps:spacing+refine
+    pipelines: tuple[str, ...] = (  # name:steps:spacing+refine[/int8]
         "dpmpp2m:3:uniform+10",
         "dpmpp2m:3:quadratic+10",
         "ddim:3:uniform+5",
@@ -49,31 +50,36 @@ class PipelineConfig:
     output: Path = field(default=RESULTS)
 
 
-def parse_pipeline(text: str) -> tuple[str, int | None, str, int]:
-    """'ddim:3:quadratic+5' -> ('ddim', 3, 'quadratic', 5)."""
+def parse_pipeline(text: str) -> tuple[str, int | None, str, int, str]:
+    """'ddim:3:quadratic+5' -> ('ddim', 3, 'quadratic', 5, 'float32'); '.../int8' -> (..., 'int8')."""
+    text, _, precision = text.partition("/")
     sampler, _, refine = text.partition("+")
     head, _, spacing = sampler.rpartition(":")
     name, steps = parse_sampler(head)
-    return name, steps, spacing, int(refine)
+    return name, steps, spacing, int(refine), precision or "float32"
 
 
 def measure(checkpoint: str, config: PipelineConfig) -> dict:
-    solver = ikdp.load(checkpoint)
-    arm = solver.arm
+    solvers = {"float32": ikdp.load(checkpoint)}
+    arm = solvers["float32"].arm
     targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
     runs = {}
     for text in config.pipelines:
-        name, steps, spacing, refine = parse_pipeline(text)
-        runs[f"IKDP {text}"] = lambda name=name, steps=steps, spacing=spacing, refine=refine: (
-            solver.solve(
-                targets,
-                num_samples=config.samples,
-                sampler=name,
-                steps=steps,
-                spacing=spacing,
-                refine_steps=refine,
-                generator=torch.Generator().manual_seed(2),
-            ).angles
+        name, steps, spacing, refine, precision = parse_pipeline(text)
+        if precision not in solvers:
+            solvers[precision] = ikdp.load(checkpoint, precision=precision)
+        runs[f"IKDP {text}"] = (
+            lambda name=name, steps=steps, spacing=spacing, refine=refine, solver=solvers[precision]: (
+                solver.solve(
+                    targets,
+                    num_samples=config.samples,
+                    sampler=name,
+                    steps=steps,
+                    spacing=spacing,
+                    refine_steps=refine,
+                    generator=torch.Generator().manual_seed(2),
+                ).angles
+            )
         )
     for text in config.pk_settings:
         retries, iterations = (int(part) for part in text.split("x"))
@@ -102,7 +108,13 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
 
     ours, theirs = fastest("IKDP"), fastest("PseudoInverseIK")
     ratio = rows[ours]["ms_per_target"] / rows[theirs]["ms_per_target"] if ours and theirs else None
-    return {"path": solver.metadata["path"], "rows": rows, "fastest_ikdp": ours, "fastest_pk": theirs, "ratio": ratio}
+    return {
+        "path": solvers["float32"].metadata["path"],
+        "rows": rows,
+        "fastest_ikdp": ours,
+        "fastest_pk": theirs,
+        "ratio": ratio,
+    }
 
 
 def main(config: PipelineConfig) -> dict:

@@ -116,9 +116,10 @@ def run_reverse_diffusion(
     workspace = make_workspace(rows, x) if make_workspace is not None else None
     denoise = denoiser.denoise if workspace is None else partial(denoiser.denoise, workspace=workspace)
 
-    # a target's K rows share its target and condition; a workspace that reads them per target is
-    # spared the K copies (for 500 targets x 16 samples, 100 MB of conditions per 3-step solve)
-    per_target = getattr(workspace, "accepts_per_target_conditions", False) and conditions is None
+    # a target's K rows share its target and condition; a denoiser (or its workspace) that reads them per
+    # target is spared the K copies (for 500 targets x 16 samples, 100 MB of conditions per 3-step solve)
+    reader = workspace if workspace is not None else denoiser
+    per_target = getattr(reader, "accepts_per_target_conditions", False) and conditions is None
     row_targets = targets if per_target else targets.repeat_interleave(num_samples, dim=0)  # (M or B, C)
     if conditions is None:
         conditions = step_conditions(denoiser, sampler.timesteps, targets, 1 if per_target else num_samples)

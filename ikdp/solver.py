@@ -14,6 +14,7 @@ import torch
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint
 from ikdp.constraint_base import Constraint
+from ikdp.denoisers.int8 import Int8Weights, int8_available
 from ikdp.device import available_bytes, checked_device
 from ikdp.guidance import ConstraintSet
 from ikdp.model import IKDiffusion, ModelConfig
@@ -322,16 +323,33 @@ def resolve_checkpoint(path_or_name: str | Path) -> Path:
         raise CheckpointError(f"{path_or_name}: no such file, and {error}") from None
 
 
-def load(path: str | Path, device: str | torch.device = "cpu") -> Solver:
+PRECISIONS = ("float32", "int8")
+
+
+def load(path: str | Path, device: str | torch.device = "cpu", precision: str = "float32") -> Solver:
     """Load an IKDP checkpoint (a path, or a shipped model's name) as a Solver.
 
+    `precision="int8"`: the robot denoiser's wide layers sample with int8 weights (CPU only; faster
+    batch solves, the raw samples a little less precise: ikdp/denoisers/int8.py).
+
     Refuses anything but a valid IKDP checkpoint (CheckpointError, one line), and a device that is not
-    here (ValueError), before reading anything.
+    here or a precision it cannot run (ValueError), before reading anything.
     """
     device = checked_device(device)
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision: expected one of {PRECISIONS}, got {precision!r}")
+    if precision == "int8":
+        if device.type != "cpu":
+            raise ValueError(f"precision 'int8' runs on the CPU only, not on {device}")
+        unavailable = int8_available()
+        if unavailable:
+            raise ValueError(f"precision 'int8': {unavailable}")
     path = resolve_checkpoint(path)
     payload = read_checkpoint(path)
     model = model_from_checkpoint(payload, str(path))
+    kind = model.config.denoiser.kind
+    if precision == "int8" and kind != "chain_film":
+        raise ValueError(f"precision 'int8' is built for the robots' 'chain_film' denoiser; {path.name} has {kind!r}")
     try:
         prior = PosePrior.from_config(payload["prior"])
     except (KeyError, TypeError, ValueError) as error:
@@ -342,5 +360,9 @@ def load(path: str | Path, device: str | torch.device = "cpu") -> Solver:
         "train": payload["train"],
         "metrics": payload["metrics"],
         "distill": payload.get("distill"),  # a student of ikdp.distill: its teacher and its own sampler
+        "precision": precision,
     }
-    return Solver(model, prior, metadata, device)
+    solver = Solver(model, prior, metadata, device)
+    if precision == "int8":
+        solver.model.denoiser.int8 = Int8Weights(solver.model.denoiser)
+    return solver

@@ -71,3 +71,10 @@ def test_the_seeded_fidelity_rows_are_read_or_refused_in_one_line():
     )  # fmt: skip
     assert result.returncode == 1 and "Traceback" not in result.stderr
     assert "row 'm@ddim:four': expected checkpoint@sampler[:steps[:spacing]]" in result.stderr
+
+
+def test_a_pipeline_row_names_its_sampler_refinement_and_precision():
+    from benchmarks.few_step_pipeline import parse_pipeline
+
+    assert parse_pipeline("ddim:3:quadratic+5") == ("ddim", 3, "quadratic", 5, "float32")
+    assert parse_pipeline("dpmpp2m:3:uniform+10/int8") == ("dpmpp2m", 3, "uniform", 10, "int8")

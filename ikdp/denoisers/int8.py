@@ -1,0 +1,71 @@
+"""Int8 weights for sampling on a CPU: the robot denoiser's wide layers as dynamically quantized linears.
+
+Why: on a CPU a batch solve of the Panda's 512 x 4 network (1000 targets x 16 samples) spends most of
+its time in the residual blocks' 512 x 512 products and the condition network's 512 x 4096 one. With
+the weights in int8 (one scale per output channel) and each input quantized on the fly, fbgemm does
+those products 2.5-3 x faster than float32 on an AVX2 CPU; a layer's output moves by about 2 % of its
+size. What that costs in accuracy is measured, never assumed: docs/BENCHMARKS.md, "Int8 weights".
+
+Only the layers whose inputs and outputs are both wide are quantized: the input layer (the kinematic
+features, a few dozen wide) and the output (the correction, the sample's precision) stay in float32.
+Sampling only; training and gradients never see these weights.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import torch
+from torch import nn
+
+QUANTIZED_WIDTH = 64  # a linear is quantized when both its widths are at least this
+
+
+class Int8Linear:
+    """`linear(x)` with per-channel int8 weights and float32 inputs and outputs (fbgemm's dynamic linear)."""
+
+    def __init__(self, linear: nn.Linear):
+        weight = linear.weight.detach().float()
+        scales = (weight.abs().amax(dim=1).clamp_min(1e-12) / 127).double()
+        zero_points = torch.zeros(weight.shape[0], dtype=torch.long)
+        with warnings.catch_warnings():  # torch marks its quantized tensors deprecated; the op is what we use
+            warnings.simplefilter("ignore")
+            quantized = torch.quantize_per_channel(weight, scales, zero_points, 0, torch.qint8)
+            self.packed = torch.ops.quantized.linear_prepack(quantized, linear.bias.detach().float())
+        self.out_features = linear.out_features
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        flat = x.reshape(-1, x.shape[-1])
+        # reduce_range: 7-bit inputs, so that AVX2's 16-bit pair sums cannot overflow
+        return torch.ops.quantized.linear_dynamic(flat, self.packed, True).view(*x.shape[:-1], self.out_features)
+
+
+def quantized(layer: nn.Module):
+    """The layer as sampling runs it: an Int8Linear when it is a wide linear, else itself."""
+    wide = isinstance(layer, nn.Linear) and min(layer.in_features, layer.out_features) >= QUANTIZED_WIDTH
+    return Int8Linear(layer) if wide else layer
+
+
+class Int8Weights:
+    """A chain_film denoiser's residual blocks and condition network with their wide layers in int8."""
+
+    def __init__(self, denoiser):
+        self.blocks = [quantized(block) for block in denoiser.blocks]
+        layers = [quantized(layer) for layer in denoiser.condition_net]
+        self.condition_net = lambda embedded: _chain(layers, embedded)
+
+
+def _chain(layers, x: torch.Tensor) -> torch.Tensor:
+    for layer in layers:
+        x = layer(x)
+    return x
+
+
+def int8_available() -> str | None:
+    """None when this torch build can run Int8Linear here, else why not (one line)."""
+    try:
+        Int8Linear(nn.Linear(QUANTIZED_WIDTH, QUANTIZED_WIDTH))(torch.zeros(1, QUANTIZED_WIDTH))
+    except (RuntimeError, AttributeError, NotImplementedError) as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        return f"this torch build cannot run int8 linears on this CPU ({first_line})"
+    return None
