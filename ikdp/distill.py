@@ -113,6 +113,8 @@ def validate(config: DistillConfig) -> None:
     for name in ("spread_weight", "distribution_weight"):
         if getattr(config, name) > 0 and config.noises_per_target < 2:
             raise ValueError(f"{name}: needs noises_per_target 2 or more (pairs of poses for one target)")
+    if config.reference_pool > 0 and config.distribution_weight == 0:
+        raise ValueError("reference_pool: the pool is the distribution term's reference; give distribution_weight > 0")
 
 
 def student_sampler(model: IKDiffusion, config: DistillConfig) -> DDIMSampler:
@@ -257,6 +259,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         optimizer.load_state_dict(payload["optimizer"])
         data_generator.set_state(payload["data_generator"])
         step, seconds_before = int(payload["train"]["step"]), float(payload["train"]["seconds"])
+        budget = budget.resumed(payload["train"], step, seconds_before)  # a longer budget decays on from here
         print(f"resuming {output} at step {step}", file=sys.stderr)
 
     try:
@@ -275,7 +278,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         nonlocal metrics
         metrics = measure_student(student, prior, config, device) if config.eval_targets else {}
         metrics["step"] = step
-        record = {**asdict(config), "step": step, "seconds": elapsed(), "finished": final}
+        record = {**asdict(config), "step": step, "seconds": elapsed(), "finished": final, "lr_decay": budget.record()}
         record |= {"torch_version": str(torch.__version__), "threads": torch.get_num_threads(), "command": command}
         save_checkpoint(
             output,

@@ -419,6 +419,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         optimizer.load_state_dict(payload["optimizer"])
         step = int(payload["train"]["step"])
         seconds_before = float(payload["train"]["seconds"])
+        budget = budget.resumed(payload["train"], step, seconds_before)  # a longer budget decays on from here
         cpu_seconds_before = float(payload["train"].get("cpu_seconds", 0.0))
         history = list(payload.get("history", []))
         states = payload.get("data_generators") or [payload["data_generator"]]
@@ -455,7 +456,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         solving_model = averaged.module if averaged is not None else model
         metrics = measure_accuracy(solving_model, prior, config.eval_targets, device) if config.eval_targets else {}
         metrics["step"] = step
-        train_record = {**plain_values(config), "step": step, "seconds": wall_seconds()}
+        train_record = {**plain_values(config), "step": step, "seconds": wall_seconds(), "lr_decay": budget.record()}
         # the process's CPU time too: on a shared machine the wall clock also counts other programs' turns
         train_record["cpu_seconds"] = cpu_seconds_before + time.process_time() - cpu_started
         if metrics.get("tip_error_median") is not None:

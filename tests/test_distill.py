@@ -104,6 +104,7 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--refine-teacher-steps", "-1"], "refine_teacher_steps: got -1, expected 0 or more"),
         (["--distribution-weight", "1"], "distribution_weight: needs noises_per_target 2 or more"),
         (["--init", "no_such_student.pt"], "no_such_student.pt"),
+        (["--reference-pool", "64"], "reference_pool: the pool is the distribution term's reference"),
     ],
 )
 def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):

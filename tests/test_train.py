@@ -126,6 +126,35 @@ def test_a_clock_budget_decays_the_rate_and_ends_by_minutes():
         TrainingBudget(steps=10, minutes=-1.0)
 
 
+def budget_record(budget: TrainingBudget) -> dict:
+    return {"steps": budget.steps, "minutes": budget.minutes, "warmup": budget.warmup, "lr_decay": budget.record()}
+
+
+def test_a_longer_budget_on_resume_decays_on_from_the_rate_reached():
+    first = TrainingBudget(steps=10**12, minutes=10.0, warmup=10)
+    step, seconds = 500, 300.0  # half the clock: half-way down the cosine
+    reached = first.lr_factor(step, seconds)
+    longer = TrainingBudget(steps=10**12, minutes=20.0, warmup=10).resumed(budget_record(first), step, seconds)
+    assert longer.lr_factor(step, seconds) == pytest.approx(reached)  # no jump
+    assert TrainingBudget(steps=10**12, minutes=20.0, warmup=10).lr_factor(step, seconds) > reached + 0.1  # refitted
+    rates = [longer.lr_factor(step + 10 * i, seconds + 9 * i) for i in range(101)]  # to the new end, 1200 s
+    assert all(later <= earlier for earlier, later in zip(rates, rates[1:], strict=False))
+    assert rates[-1] == pytest.approx(0.1) and rates[50] < reached
+    # resumed again with the same budget: the record carries the extension on
+    again = TrainingBudget(steps=10**12, minutes=20.0, warmup=10).resumed(budget_record(longer), step + 50, 400.0)
+    assert again == longer
+    assert first.resumed(budget_record(first), step, seconds) == first  # the budget it had: as it was
+    assert longer.resumed({"steps": "many"}, step, seconds) == longer  # an unreadable record: the budget as given
+
+
+def test_a_resumed_training_with_more_steps_keeps_its_rate_going_down(tmp_path):
+    output = train(small_config(tmp_path, steps=8, warmup=2, hidden=8))
+    resumed = train(small_config(tmp_path, steps=16, warmup=2, hidden=8, resume=True))
+    decay = read_checkpoint(resumed)["train"]["lr_decay"]
+    assert decay["from_step"] == 8 and decay["decay_from"] == pytest.approx(1.0)  # the first run ended at a tenth
+    assert read_checkpoint(output)["train"]["step"] == 16
+
+
 def test_minutes_end_a_training_by_its_clock_and_record_the_curve(tmp_path):
     output = train(small_config(tmp_path, steps=None, minutes=0.03, save_every=20))
     payload = read_checkpoint(output)
