@@ -15,9 +15,8 @@ from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors
 from ikdp_viz.constraint_scene import FREE_AXIS_COLOR, HOLDS, VIOLATES, holds, sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
 from ikdp_viz.legend import Entry, Swatch
-from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, recorded_extras
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, trail_colors
-from ikdp_viz.style import ESTIMATE, PRIOR
+from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, shown_layers
+from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, trail_colors
 
 HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
 # darkens a mesh and the Panda's links are near black in their own shadows
@@ -190,14 +189,12 @@ class ChainKind:
         if settings.recording:  # a static page: what it draws alone, the target a frame no one can drag
             target = Entry(Swatch((220, 25, 25)), "target: the frame at the target pose, x red, y green, z blue")
             return [*robots, *([trail_entry] if settings.show_trail else []), hand,
-                    *recorded_extras(settings, solved), target]  # fmt: skip
+                    *shown_layers(settings, solved), target]  # fmt: skip
         entries = [
             *robots,
             trail_entry,
             hand,
-            Entry(Swatch(ESTIMATE), "x̂0 (show x̂0): the denoiser's guess of the final pose"),
-            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
-            Entry(Swatch(PRIOR), "poses drawn from the prior"),
+            *shown_layers(settings, solved),
             # the 3-D target is the gizmo, no red cross (finding 10: the legend listed one)
             Entry(Swatch((220, 25, 25)), "target: the gizmo's pose (drag its arrows and rings)"),
         ]

@@ -36,17 +36,20 @@ class ViewSettings:
     color_by_constraint: bool = True  # green / red by whether each sample's constraints hold
     followed: bool = False  # follow mode chose the highlighted sample (the Constraints folder)
     joint_space: bool = False  # the joint-space view is on (its colours join the legend)
+    prior: bool = False  # poses drawn from the prior are on screen (until the next solve; their colour joins the
+    # legend)
     recording: bool = False  # a static page (record.py): the legend lists only what the page draws, and no
     # control to drag or click
 
     @classmethod
-    def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False) -> ViewSettings:
+    def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False,
+                   prior: bool = False) -> ViewSettings:  # fmt: skip
         return cls(
             highlight=str(panel.highlight.value), trail_of=str(panel.learn.trail_of.value),
             show_trail=bool(panel.show_trail.value), show_estimate=bool(panel.show_estimate.value),
             clock=str(panel.learn.clock.value), seconds=float(panel.duration.value) or 4.0,
             color_by_constraint=color_by_constraint, followed=followed,
-            joint_space=bool(panel.joint_space.show.value),
+            joint_space=bool(panel.joint_space.show.value), prior=prior,
         )  # fmt: skip
 
 

@@ -134,13 +134,9 @@ class PlanarKind:
         else:
             entries += [highlighted, others]
         entries.append(Entry(Swatch(TIP_DARK, faint=TIP_FAINT), "tips: t = T → 0"))
-        if settings.recording:  # a static page: what it draws alone (no prior, no joint space)
-            return [*entries, *recorded_extras(settings, solved), Entry(Swatch(TARGET_RED, "cross"), "target")]
-        entries += [
-            Entry(Swatch(ESTIMATE), "x̂0 (show x̂0): the denoiser's guess of the final pose"),
-            Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"),
-        ]
-        entries += [Entry(Swatch(PRIOR), "poses drawn from the prior"), Entry(Swatch(TARGET_RED, "cross"), "target")]
+        entries += [*shown_layers(settings, solved), Entry(Swatch(TARGET_RED, "cross"), "target")]
+        if settings.recording:  # a static page: what it draws alone (no joint space)
+            return entries
         if settings.joint_space and view is not None:  # the square's marks (finding 6: its ✕ read as "target")
             if view.num_links == 2:
                 entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's exact solutions"))
@@ -150,13 +146,17 @@ class PlanarKind:
         return entries
 
 
-def recorded_extras(settings, solved) -> list[Entry]:
-    """The legend's x̂0 and refined entries of a recording (record.py), only where the page draws them: x̂0 when
-    the settings show it, the refined poses when the solve was polished (a Panda page listed both, and the
-    prior, while drawing none of them)."""
+def shown_layers(settings, solved) -> list[Entry]:
+    """The legend's x̂0, refined and prior entries, for both arm kinds, live and recorded: only while the scene
+    draws them. x̂0 while the settings show it, the refined poses when the solve shown was polished, the prior's
+    draw while it is on screen (never on a recording's page). The viewer listed all three whatever it drew, and a
+    recorded Panda page did too."""
     entries = []
     if settings.show_estimate:
-        entries.append(Entry(Swatch(ESTIMATE), "x̂0: the denoiser's guess of the final pose"))
+        control = "" if settings.recording else " (show x̂0)"  # a recording has no panel to turn it on or off
+        entries.append(Entry(Swatch(ESTIMATE), f"x̂0{control}: the denoiser's guess of the final pose"))
     if solved is not None and solved.view.refined:
         entries.append(Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"))
+    if settings.prior and not settings.recording:
+        entries.append(Entry(Swatch(PRIOR), "poses drawn from the prior"))
     return entries

@@ -97,7 +97,7 @@ class SceneWriter:
     def settings(self) -> ViewSettings:
         """The panel's view settings now (read on this thread, once per frame)."""
         return ViewSettings.from_panel(self.panel, color_by_constraint=self.color_by_constraint,
-                                       followed=self.followed)  # fmt: skip
+                                       followed=self.followed, prior=self.view.prior_lines is not None)  # fmt: skip
 
     def highlight_index(self) -> int:
         """The 0-based sample the highlight dropdown names, for the solve on screen (0 before any)."""
@@ -131,6 +131,7 @@ class SceneWriter:
             self._new_model(message)
         elif isinstance(message, ShowPrior):
             self.view.show_prior(message.joints)
+            self._redraw()  # the legend lists the prior's draw now
         elif isinstance(message, ShowError):
             self.error = message.text
             self._redraw()

@@ -242,9 +242,11 @@ def test_drawing_from_the_prior_shows_k_prior_poses_until_the_next_solve(app, so
     bones = np.linalg.norm(np.diff(joints, axis=1), axis=-1)
     assert np.allclose(bones, solver.lengths)  # real poses of this arm
     assert np.allclose(app.writer.view.prior_lines.points[..., :2].reshape(16, -1, 2, 2)[:, :, 0], joints[:, :-1])
+    assert "poses drawn from the prior" in app.panel.learn.legend.content  # the legend lists them while drawn
     app.move_target((0.2, 1.3))
     settle(app)
     assert app.writer.view.prior_lines is None
+    assert "prior" not in app.panel.learn.legend.content
 
 
 def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_path):
@@ -585,12 +587,22 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
     from ikdp_viz.style import ESTIMATE, PRIOR, TARGET_RED
 
     legend = app.panel.learn.legend.content
+    for words in ("x̂0", "refined", "prior"):  # show x̂0 off, refine off, no prior's draw: none of them is drawn
+        assert words not in legend
+    app.panel.show_estimate.value = True
+    app.panel.refine.value = True
+    settle(app)
+    app.draw_prior()
+    legend = app.panel.learn.legend.content
     for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
         assert css(color) in legend  # each colour of the scene has its swatch
     for words in ("trail of the highlighted sample", "x̂0", "refined", "prior", "tips", "target"):
         assert words in legend
     app.panel.learn.trail_of.value = "all samples"
     assert "trails of all samples" in app.panel.learn.legend.content
+    app.panel.show_estimate.value = app.panel.refine.value = False
+    settle(app)
+    assert not any(words in app.panel.learn.legend.content for words in ("x̂0", "refined", "prior"))
 
 
 def test_the_page_opens_on_pure_noise_and_plays_when_a_tab_connects(solver):

@@ -178,7 +178,18 @@ def test_a_pause_draws_the_state_in_full_again(app):
 
 def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
     legend = app.panel.learn.legend.content
-    assert "highlighted robot" in legend and "skeletons" in legend and "hand frame" in legend and "x̂0" in legend
+    assert "highlighted robot" in legend and "skeletons" in legend and "hand frame" in legend
+    assert not any(words in legend for words in ("x̂0", "refined", "prior"))  # none of them drawn yet
+    app.panel.show_estimate.value = True
+    app.panel.refine.value = True
+    settle(app)
+    app.draw_prior()
+    assert app.solved.view.refined
+    legend = app.panel.learn.legend.content
+    assert "x̂0" in legend and "refined" in legend and "poses drawn from the prior" in legend
+    app.panel.refine.value = False  # the next solve: not refined, and the prior's draw goes
+    settle(app)
+    assert "refined" not in app.panel.learn.legend.content and "prior" not in app.panel.learn.legend.content
 
 
 def test_the_followed_robot_stands_out_and_the_others_recede(app):

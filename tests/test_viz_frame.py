@@ -3,9 +3,12 @@ as its colours, so they name the same sample and the same colours. Plain values:
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from viz_helpers import hand_made_result
 
 from ikdp_viz.chain_kind import ChainKind
@@ -56,3 +59,31 @@ def test_the_legend_names_the_colours_the_frame_draws():
     assert (tips.swatch.faint, tips.swatch.color) == (TIP_FAINT, TIP_DARK)  # the ramp the tips are drawn in
     robot = ChainKind().legend_entries(ViewSettings(), constraint_colors=False, view=None, solved=None)
     assert not any(entry.swatch.shape == "cross" for entry in robot)  # 3-D draws the target as the gizmo
+
+
+LAYERS = ("x̂0", "refined", "poses drawn from the prior")  # the legend's entries of layers drawn only at times
+
+
+def listed_layers(entries) -> set[str]:
+    return {word for word in LAYERS if any(entry.text.startswith(word) for entry in entries)}
+
+
+@pytest.mark.parametrize("kind", [PlanarKind(), ChainKind()], ids=["planar", "chain"])
+def test_the_legend_lists_x0_refined_and_the_prior_only_while_the_scene_draws_them(kind):
+    """The viewer's legend listed x̂0 with "show x̂0" off, "refined" for a solve not refined and the prior's poses
+    with none on screen: a screenshot's legend named layers its scene did not draw. A recording draws no prior."""
+    for show_estimate, refined, prior in itertools.product((False, True), repeat=3):
+        settings = ViewSettings(show_estimate=show_estimate, prior=prior, color_by_constraint=False)
+        if kind.name == "planar":
+            solved = planar_solve()
+            solved.view = dataclasses.replace(solved.view, refined=refined)
+            legend = build_frame(kind, solved, 2, settings, palettes=Palettes(), animating_to=None).legend
+        else:
+            solved = SimpleNamespace(view=SimpleNamespace(refined=refined, rotation_measure="rotation"))
+            legend = kind.legend_entries(settings, constraint_colors=False, view=solved.view, solved=solved)
+        drawn = {word for word, on in zip(LAYERS, (show_estimate, refined, prior), strict=True) if on}
+        assert listed_layers(legend) == drawn, (show_estimate, refined, prior, [entry.text for entry in legend])
+        assert any(entry.text.startswith("target") for entry in legend)  # the other entries stay
+        recorded = dataclasses.replace(settings, recording=True)
+        page = kind.legend_entries(recorded, constraint_colors=False, view=solved.view, solved=solved)
+        assert listed_layers(page) == drawn - {"poses drawn from the prior"}

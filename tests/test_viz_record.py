@@ -209,13 +209,15 @@ def test_a_recorded_page_s_legend_lists_exactly_what_the_recording_draws(tiny_ch
 
 
 def test_the_shared_page_s_legend_drops_the_viewer_s_joint_space_and_prior(shared):
-    """The Share button's page: the viewer's legend lists the prior (and, with the view on, the joint space); the
-    page draws neither, so its legend does not list them."""
+    """The Share button's page: the viewer's legend lists the prior while it is drawn (and, with the view on, the
+    joint space); the page draws neither, so its legend does not list them."""
     app, _, _ = shared
     app.panel.joint_space.show.value = True
     try:
         settle(app)
-        assert any("joint space" in entry.text for entry in app.writer.frame.legend)  # the viewer's own lists it
+        app.draw_prior()
+        legend = [entry.text for entry in app.writer.frame.legend]
+        assert any("joint space" in text for text in legend) and "poses drawn from the prior" in legend  # the viewer's
         _, page = app.share()
     finally:
         app.panel.joint_space.show.value = False
