@@ -192,7 +192,7 @@ class ChainKind:
                     *shown_layers(settings, solved), target]  # fmt: skip
         entries = [
             *robots,
-            trail_entry,
+            *([trail_entry] if settings.show_trail else []),  # listed only while drawn, as every layer
             hand,
             *shown_layers(settings, solved),
             # the 3-D target is the gizmo, no red cross (finding 10: the legend listed one)

@@ -125,7 +125,7 @@ class PlanarKind:
             trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0")
             others = Entry(Swatch(DARK, faint=FAINT), "the other samples")
         highlighted = Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown")
-        entries = [trail] if settings.show_trail or not settings.recording else []
+        entries = [trail] if settings.show_trail else []  # listed only while drawn, as every layer
         if constraint_colors:  # the arms are green or red then, the highlighted one in full (finding 10)
             entries += [
                 Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.holds_text),

@@ -87,3 +87,14 @@ def test_the_legend_lists_x0_refined_and_the_prior_only_while_the_scene_draws_th
         recorded = dataclasses.replace(settings, recording=True)
         page = kind.legend_entries(recorded, constraint_colors=False, view=solved.view, solved=solved)
         assert listed_layers(page) == drawn - {"poses drawn from the prior"}
+
+
+@pytest.mark.parametrize("kind", [PlanarKind(), ChainKind()], ids=["planar", "chain"])
+@pytest.mark.parametrize("recording", [False, True])
+def test_the_legend_lists_the_trail_only_while_it_is_drawn(kind, recording):
+    def trail_listed(show_trail: bool) -> bool:
+        settings = ViewSettings(show_trail=show_trail, recording=recording)
+        entries = kind.legend_entries(settings, constraint_colors=False, view=None, solved=None)
+        return any("trail" in entry.text for entry in entries)
+
+    assert trail_listed(True) and not trail_listed(False)
