@@ -2,6 +2,7 @@
 
     OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda ikdp_panda_cpu ikdp_n4
     OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints runs/n4_student.pt --samplers ddpm ddim:2
+    OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda --precisions float32 int8
 
 For each model and each sampler `name:steps` (DDIM, DPM-Solver++(2M) and the strided ancestral DDPM at
 2, 4, 8 and 16 network evaluations by default), once per timestep spacing (`uniform`, evenly spaced, and
@@ -36,6 +37,7 @@ FEW_STEP_SAMPLERS = tuple(f"{name}:{steps}" for name in ("ddim", "dpmpp2m", "anc
 @dataclass(frozen=True)
 class FewStepConfig:
     checkpoints: tuple[str, ...] = ("ikdp_panda", "ikdp_panda_cpu", "ikdp_n4")  # paths or shipped names
+    precisions: tuple[str, ...] = ("float32",)  # each checkpoint at each (int8: robots only, ikdp.load's precision)
     samplers: tuple[str, ...] = ("ddpm",) + FEW_STEP_SAMPLERS  # name[:steps]
     spacings: tuple[str, ...] = ("uniform", "quadratic")  # timestep grids compared (ddpm: all T steps, one row)
     targets: int = 1000  # raw K = 1 targets (a planar arm: 2000 is the core benchmark's count)
@@ -129,9 +131,11 @@ def main(config: FewStepConfig) -> dict:
     results: dict = {"config": {**asdict(config), "output": str(config.output)}, "machine": machine_description(1)}
     models = {}
     for checkpoint in config.checkpoints:
-        solver = ikdp.load(checkpoint)
-        models[checkpoint] = {"path": solver.metadata["path"], "rows": measure(solver, config)}
-        print_rows(checkpoint, models[checkpoint]["rows"])
+        for precision in config.precisions:
+            solver = ikdp.load(checkpoint, precision=precision)
+            name = checkpoint if precision == "float32" else f"{checkpoint} ({precision})"
+            models[name] = {"path": solver.metadata["path"], "precision": precision, "rows": measure(solver, config)}
+            print_rows(name, models[name]["rows"])
     results["models"] = models
     write(results, config.output)
     return results
