@@ -32,7 +32,8 @@ from ikdp.refine import dls_step
 from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
 DLS_DAMPING = 0.05  # lambda of the DLS step feature, in units of the arm's span
-SAMPLING_CHUNK_ROWS = 2048  # rows a chunk of a large sampling batch: 4 MB per 512-wide activation
+SAMPLING_CHUNK_ROWS = 1024  # rows a chunk of a large sampling batch: 2 MB per 512-wide activation (1024 measured
+# 5-10 % faster than 2048 and 512, float32 and int8, on a 2-core AMD EPYC)
 MISS_SCALE = 10.0  # the position miss in tenths of the span: the last steps correct millimetres
 
 
