@@ -333,7 +333,8 @@ def load(path: str | Path, device: str | torch.device = "cpu", precision: str = 
     batch solves, the raw samples a little less precise: ikdp/denoisers/int8.py).
 
     Refuses anything but a valid IKDP checkpoint (CheckpointError, one line), and a device that is not
-    here or a precision it cannot run (ValueError), before reading anything.
+    here or a precision it cannot run (ValueError), before reading anything (int8 for a model without the
+    robot denoiser: once its file says so).
     """
     device = checked_device(device)
     if precision not in PRECISIONS:

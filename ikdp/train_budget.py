@@ -87,8 +87,8 @@ class TrainingBudget:
                 int(saved["steps"]), float(saved.get("minutes", 0.0)), int(saved.get("warmup", 0)),
                 **{key: type(value)(saved.get("lr_decay", {}).get(key, value)) for key, value in self.record().items()},
             )  # fmt: skip
-        except (KeyError, TypeError, ValueError):
-            return self  # a record from before budgets were saved: the budget as given
+        except (AttributeError, KeyError, TypeError, ValueError):
+            return self  # a record from before budgets were saved, or unreadable: the budget as given
         if (previous.steps, previous.minutes, previous.warmup) == (self.steps, self.minutes, self.warmup):
             return previous
         if step < previous.warmup:

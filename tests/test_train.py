@@ -145,6 +145,7 @@ def test_a_longer_budget_on_resume_decays_on_from_the_rate_reached():
     assert again == longer
     assert first.resumed(budget_record(first), step, seconds) == first  # the budget it had: as it was
     assert longer.resumed({"steps": "many"}, step, seconds) == longer  # an unreadable record: the budget as given
+    assert longer.resumed({"steps": 10, "lr_decay": "?"}, step, seconds) == longer
 
 
 def test_a_resumed_training_with_more_steps_keeps_its_rate_going_down(tmp_path):
