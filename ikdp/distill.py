@@ -25,6 +25,7 @@ and on Ctrl-C or SIGTERM; `--resume` continues from it; `--minutes` bounds the w
 
 from __future__ import annotations
 
+import copy
 import math
 import shlex
 import sys
@@ -38,7 +39,7 @@ from tqdm import tqdm
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.distill_reference import PoseStream, energy_distance, mean_distance
-from ikdp.model import IKDiffusion
+from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
 from ikdp.samplers import DDIMSampler, make_sampler
@@ -73,6 +74,9 @@ class DistillConfig:
     # the goal then reaches the target in the teacher's own mode, so matching it and reaching the target agree
     refine_teacher_steps: int = 0
     init: str = ""  # a student checkpoint of the same teacher to start from (empty: the teacher's weights)
+    # a robot student with the denoiser's DLS skip (its gain, new and learnt, starts at 1 where the noise is small):
+    # each evaluation may then add a damped least-squares step toward the target to its estimate
+    dls_skip: bool = False
     steps: int = 2000  # optimizer steps (the run ends at this or at --minutes, whichever comes first)
     minutes: float = 0.0  # wall-clock budget of the whole run, resumes included (0: none)
     batch: int = 256  # poses per step
@@ -208,24 +212,47 @@ def measure_student(model: IKDiffusion, prior: PosePrior, config: DistillConfig,
     return metrics
 
 
-def starting_student(path: str, teacher_path: str, teacher: IKDiffusion) -> IKDiffusion:
-    """The student checkpoint `path` to start from; ValueError unless it is a student of the same teacher's file,
-    with the teacher's network (the same weights' names and shapes: a config written by a later version of ikdp
-    lists more defaults)."""
+SKIP_WEIGHTS = {"denoiser.step_gain.weight", "denoiser.step_gain.bias"}  # the DLS skip's gain: what --dls-skip adds
+
+
+def student_network(teacher_payload: dict, teacher_path: str, dls_skip: bool) -> IKDiffusion:
+    """The teacher's network with its weights, to be trained as the student; with `dls_skip`, plus the DLS skip (its
+    gain's new layer starts at zero, so the gain starts at its schedule: 1 at low noise, 0 at high)."""
+    if not dls_skip:
+        return model_from_checkpoint(teacher_payload, teacher_path)
+    description = copy.deepcopy(teacher_payload["model"])
+    denoiser = description.get("denoiser") or {}
+    if denoiser.get("kind") != "chain_film":
+        raise ValueError(
+            f"dls_skip: for a robot's chain_film denoiser; {Path(teacher_path).stem} has {denoiser.get('kind')!r}"
+        )
+    if denoiser.get("dls_skip"):
+        raise ValueError(f"dls_skip: {Path(teacher_path).stem} has the DLS skip already; leave the option out")
+    denoiser["dls_skip"] = True
+    student = IKDiffusion(ModelConfig.from_dict(description))
+    student.load_state_dict(model_from_checkpoint(teacher_payload, teacher_path).state_dict(), strict=False)
+    return student
+
+
+def starting_student(path: str, teacher_path: str, student: IKDiffusion) -> dict:
+    """The weights of the student checkpoint `path` to start from; ValueError unless it is a student of the same
+    teacher's file, with the student's network (the same weights' names and shapes: a config written by a later
+    version of ikdp lists more defaults), or that network less the DLS skip's gain that `student` adds."""
     payload = read_checkpoint(path)  # CheckpointError names a missing or broken file
     record = payload.get("distill")
     if not isinstance(record, dict):
         raise ValueError(f"init: {path} is not a student (no distill record)")
     if Path(str(record.get("teacher_path", ""))).name != Path(teacher_path).name:
         raise ValueError(f"init: {path} is a student of {record.get('teacher')}, not of {Path(teacher_path).stem}")
-    student = model_from_checkpoint(payload, path)
+    start = model_from_checkpoint(payload, path)
 
     def shapes(model: IKDiffusion) -> dict:
         return {name: tuple(value.shape) for name, value in model.state_dict().items()}
 
-    if shapes(student) != shapes(teacher):
+    wanted = shapes(student)
+    if shapes(start) not in (wanted, {name: shape for name, shape in wanted.items() if name not in SKIP_WEIGHTS}):
         raise ValueError(f"init: {path} has another network than its teacher {Path(teacher_path).stem}")
-    return student
+    return start.state_dict()
 
 
 def log_folder(config: DistillConfig) -> Path:
@@ -245,9 +272,9 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     teacher_path = teacher_solver.metadata["path"]
     teacher_payload = read_checkpoint(teacher_path)
     teacher, prior = teacher_solver.model, teacher_solver.prior
-    student = model_from_checkpoint(teacher_payload, teacher_path).to(device)  # starts as the teacher
+    student = student_network(teacher_payload, teacher_path, config.dls_skip).to(device)  # starts as the teacher
     if config.init and not (config.resume and output.exists()):
-        student.load_state_dict(starting_student(config.init, teacher_path, student).state_dict())
+        student.load_state_dict(starting_student(config.init, teacher_path, student), strict=False)
     sampler = student_sampler(student, config)
     optimizer = torch.optim.AdamW(student.parameters(), lr=config.lr, weight_decay=0.0)
     data_generator = torch.Generator().manual_seed(config.seed)

@@ -9,12 +9,14 @@ import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.describe import describe
 from ikdp.distill import (
+    SKIP_WEIGHTS,
     DistillConfig,
     distill,
     energy_distance,
     main,
     refined_in_place,
     spread_miss,
+    student_network,
     student_sampler,
     unrolled_student,
 )
@@ -105,6 +107,7 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--distribution-weight", "1"], "distribution_weight: needs noises_per_target 2 or more"),
         (["--init", "no_such_student.pt"], "no_such_student.pt"),
         (["--reference-pool", "64"], "reference_pool: the pool is the distribution term's reference"),
+        (["--dls-skip"], "dls_skip: for a robot's chain_film denoiser; ikdp_n4 has 'film'"),
     ],
 )
 def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):
@@ -237,3 +240,26 @@ def test_init_refuses_a_student_of_another_network_under_the_teachers_name(
         main(["--teacher", str(other / tiny_checkpoint.name), "--init", str(first), "--output", str(other / "s.pt")])
     error = capsys.readouterr().err
     assert "has another network than its teacher" in error and "Traceback" not in error
+
+
+def test_a_robot_student_with_the_dls_skip_starts_from_the_teacher_or_a_student_without_it(tmp_path):
+    teacher = ikdp.load("ikdp_panda_cpu")  # a shipped robot model without the skip
+    payload = read_checkpoint(teacher.metadata["path"])
+    student = student_network(payload, teacher.metadata["path"], dls_skip=True)
+    assert student.config.denoiser.dls_skip and not teacher.model.config.denoiser.dls_skip
+    weights, teachers = student.state_dict(), teacher.model.state_dict()
+    assert set(weights) - set(teachers) == SKIP_WEIGHTS
+    assert all(torch.equal(weights[name], value) for name, value in teachers.items())  # the teacher's own weights
+    assert all(not weights[name].any() for name in SKIP_WEIGHTS)  # the gain at its schedule's start
+
+    robot = dict(student_steps=2, teacher_steps=2, steps=1, batch=8, eval_targets=0)
+    plain = distill(small_config(tmp_path / "plain", "ikdp_panda_cpu", **robot))
+    skip = distill(small_config(tmp_path / "skip", "ikdp_panda_cpu", **robot, init=str(plain), dls_skip=True))
+    solver = ikdp.load(skip)
+    assert solver.model.config.denoiser.dls_skip
+    started = read_checkpoint(plain)["state_dict"]
+    moved = read_checkpoint(skip)["state_dict"]
+    assert set(moved) - set(started) == SKIP_WEIGHTS  # --init gave the rest: one step moved them only a little
+    assert max(float((moved[name] - value).abs().max()) for name, value in started.items()) < 0.01
+    with pytest.raises(ValueError, match="has another network than its teacher"):  # a skip student as a plain start
+        distill(small_config(tmp_path / "back", "ikdp_panda_cpu", **robot, init=str(skip)))
