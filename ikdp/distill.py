@@ -366,10 +366,10 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             step += 1
             if step % 10 == 0:
                 writer.add_scalar("train/loss", float(loss.detach()), step)
-                writer.add_scalar("train/teacher_match", float(match.mean()), step)
-                writer.add_scalar("train/spread_miss", float(spread.mean()), step)
-                writer.add_scalar("train/energy_distance", float(distribution.mean()), step)
-                writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean()), step)
+                writer.add_scalar("train/teacher_match", float(match.mean().detach()), step)
+                writer.add_scalar("train/spread_miss", float(spread.mean().detach()), step)
+                writer.add_scalar("train/energy_distance", float(distribution.mean().detach()), step)
+                writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean().detach()), step)
                 writer.add_scalar("train/lr", optimizer.param_groups[0]["lr"], step)
                 progress.set_postfix(loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.sqrt().mean()):.4f}")
             progress.update(1)
