@@ -83,9 +83,11 @@ class TrainingBudget:
         the saved run had reached, down to a tenth at the end of this budget (never back up).
         """
         try:
+            decay = saved.get("lr_decay") or {}
             previous = TrainingBudget(
                 int(saved["steps"]), float(saved.get("minutes", 0.0)), int(saved.get("warmup", 0)),
-                **{key: type(value)(saved.get("lr_decay", {}).get(key, value)) for key, value in self.record().items()},
+                decay_from=float(decay.get("decay_from", 0.0)), from_step=int(decay.get("from_step", 0)),
+                from_seconds=float(decay.get("from_seconds", 0.0)),
             )  # fmt: skip
         except (AttributeError, KeyError, TypeError, ValueError):
             return self  # a record from before budgets were saved, or unreadable: the budget as given

@@ -21,10 +21,11 @@ from torch import nn
 QUANTIZED_WIDTH = 64  # a linear is quantized when both its widths are at least this
 
 
-class Int8Linear:
+class Int8Linear(nn.Module):
     """`linear(x)` with per-channel int8 weights and float32 inputs and outputs (fbgemm's dynamic linear)."""
 
     def __init__(self, linear: nn.Linear):
+        super().__init__()
         weight = linear.weight.detach().float()
         scales = (weight.abs().amax(dim=1).clamp_min(1e-12) / 127).double()
         zero_points = torch.zeros(weight.shape[0], dtype=torch.long)
@@ -34,7 +35,7 @@ class Int8Linear:
             self.packed = torch.ops.quantized.linear_prepack(quantized, linear.bias.detach().float())
         self.out_features = linear.out_features
 
-    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
         flat = x.reshape(-1, x.shape[-1])
         # reduce_range: 7-bit inputs, so that AVX2's 16-bit pair sums cannot overflow
         return torch.ops.quantized.linear_dynamic(flat, self.packed, True).view(*x.shape[:-1], self.out_features)
@@ -51,14 +52,7 @@ class Int8Weights:
 
     def __init__(self, denoiser):
         self.blocks = [quantized(block) for block in denoiser.blocks]
-        layers = [quantized(layer) for layer in denoiser.condition_net]
-        self.condition_net = lambda embedded: _chain(layers, embedded)
-
-
-def _chain(layers, x: torch.Tensor) -> torch.Tensor:
-    for layer in layers:
-        x = layer(x)
-    return x
+        self.condition_net = nn.Sequential(*(quantized(layer) for layer in denoiser.condition_net))
 
 
 def int8_available() -> str | None:
