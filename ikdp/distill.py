@@ -8,7 +8,7 @@ the few-step sampler unrolled and trained end to end, as in progressive distilla
     x_T ~ N(0, I); poses ~ prior; targets = FK(poses)
     teacher: x_T --(teacher_sampler, teacher_steps)--> x0_teacher                 (no gradient)
     student: x_T --(DDIM, student_steps, the student's x̂0 at each step)--> x0_student
-    loss = |x0_student - x0_teacher|^2 + tip_loss_weight * FK miss of x0_student  (model.consistency_miss)
+    loss = match_weight * |x0_student - x0_teacher|^2 + tip_loss_weight * FK miss of x0_student  (consistency_miss)
            + spread_weight * (mean distance of a target's student poses - the teacher's)^2   (spread_miss)
            + distribution_weight * energy distance to the teacher's DDPM samples      (energy_distance)
 
@@ -58,6 +58,9 @@ class DistillConfig:
     teacher_sampler: Literal["ddim", "dpmpp2m"] = "dpmpp2m"  # the teacher's deterministic sampler
     teacher_steps: int = 16  # its steps
     teacher_spacing: Literal["uniform", "quadratic"] = "quadratic"  # its grid
+    # weight of the match to the teacher's ODE endpoint from the same noise (0: off, and the teacher's ODE is not run;
+    # the distribution term then alone keeps the student's poses where the teacher's DDPM puts them)
+    match_weight: float = 1.0
     tip_loss_weight: float = 2000.0  # weight of the FK miss of the student's pose (ikdp_n4_2step's; at 100 it lost)
     # weight of the spread term: the student's poses for one target as far apart on average as the teacher's from the
     # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.43 x the teacher's)
@@ -107,6 +110,7 @@ def validate(config: DistillConfig) -> None:
         "reference_pool": config.reference_pool,
     }
     nonnegative |= {"tip_loss_weight": config.tip_loss_weight, "spread_weight": config.spread_weight}
+    nonnegative |= {"match_weight": config.match_weight}
     for name, value in nonnegative.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
@@ -117,6 +121,8 @@ def validate(config: DistillConfig) -> None:
     for name in ("spread_weight", "distribution_weight"):
         if getattr(config, name) > 0 and config.noises_per_target < 2:
             raise ValueError(f"{name}: needs noises_per_target 2 or more (pairs of poses for one target)")
+    if config.match_weight == 0 and config.distribution_weight == 0:
+        raise ValueError("match_weight: with 0 nothing ties the student to its teacher; give distribution_weight > 0")
     if config.reference_pool > 0 and config.distribution_weight == 0:
         raise ValueError("reference_pool: the pool is the distribution term's reference; give distribution_weight > 0")
 
@@ -348,12 +354,16 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             noise = torch.randn((config.batch, student.representation.dim), generator=data_generator)  # x_T (B, D)
             noise = noise.to(device)
             targets = arm.end_effector(joints)  # (B, target_dim)
-            goal = teacher_poses(teacher, config, noise, targets)  # (B, D)
             pose = unrolled_student(student, sampler, noise, targets)  # (B, D)
-            match = ((pose - goal) ** 2).mean(-1)  # (B,)
             consistency, tip_miss = student.consistency_miss(pose, joints, targets)
-            loss = (match + config.tip_loss_weight * consistency).mean()
-            spread = spread_miss(pose, goal, per_target) if per_target > 1 else match.new_zeros(1)
+            loss = config.tip_loss_weight * consistency.mean()
+            match, spread = pose.new_zeros(1), pose.new_zeros(1)
+            if config.match_weight > 0 or config.spread_weight > 0:  # both need the teacher's ODE endpoint
+                goal = teacher_poses(teacher, config, noise, targets)  # (B, D)
+                match = ((pose - goal) ** 2).mean(-1)  # (B,)
+                loss = loss + config.match_weight * match.mean()
+                if per_target > 1:
+                    spread = spread_miss(pose, goal, per_target)
             loss = loss + config.spread_weight * spread.mean()
             distribution = match.new_zeros(1)
             if reference is not None:

@@ -107,6 +107,8 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--distribution-weight", "1"], "distribution_weight: needs noises_per_target 2 or more"),
         (["--init", "no_such_student.pt"], "no_such_student.pt"),
         (["--reference-pool", "64"], "reference_pool: the pool is the distribution term's reference"),
+        (["--match-weight", "0"], "match_weight: with 0 nothing ties the student to its teacher"),
+        (["--match-weight", "-1"], "match_weight: got -1.0, expected 0 or more"),
         (["--dls-skip"], "dls_skip: for a robot's chain_film denoiser; ikdp_n4 has 'film'"),
     ],
 )
@@ -205,6 +207,20 @@ def test_a_run_with_the_distribution_term_samples_the_teachers_ddpm(tiny_checkpo
     config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, steps=2)
     student = torch.load(distill(config), weights_only=True)
     assert calls == [16, 16] and student["train"]["distribution_weight"] == 1.0  # one DDPM batch a step
+
+
+def test_without_the_match_term_the_teachers_ode_is_not_run(tiny_checkpoint, tmp_path, monkeypatch):
+    import ikdp.distill as distill_module
+
+    calls = []
+    real = distill_module.teacher_poses
+    monkeypatch.setattr(distill_module, "teacher_poses", lambda *a: calls.append(len(a[2])) or real(*a))
+    config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, steps=2)
+    distill(config)
+    assert calls == [16, 16]  # with the match term: the teacher's ODE once a step
+    calls.clear()
+    student = torch.load(distill(replace(config, match_weight=0.0, output=str(tmp_path / "free.pt"))), weights_only=True)
+    assert calls == [] and student["train"]["match_weight"] == 0.0 and student["train"]["step"] == 2
 
 
 def test_a_reference_pool_is_drawn_once_and_every_step_picks_its_targets_from_it(tiny_checkpoint, tmp_path):
