@@ -141,6 +141,10 @@ def test_a_robot_recording_labels_every_step_where_its_camera_sees_it(tiny_chain
     texts = [str(message) for message in labels]
     for state in range(solved.view.num_states):
         assert any(f"step {state} of {solved.view.num_states - 1} " in text for text in texts), state
+    # each label change lands at the instant the robots change to that state, never a sleep before or after
+    label_times = sorted({time for time, message in data["messages"] if message.get("name") == "/recording/step"})
+    scene_times = sorted({time for time, message in data["messages"] if message.get("name", "").startswith("/samples")})
+    assert label_times == scene_times and len(label_times) == solved.view.num_states
     camera = next(m["position"] for _, m in data["messages"] if m.get("type") == "SetCameraPositionMessage")
     look_at = next(m["look_at"] for _, m in data["messages"] if m.get("type") == "SetCameraLookAtMessage")
     where = next(m["position"] for _, m in data["messages"]
