@@ -129,6 +129,12 @@ class PlanarArm:
         """The vector from the tip to the target, (..., 2): what damped least squares drives to zero."""
         return targets - self.end_effector(headings)
 
+    def task_error_and_jacobian(
+        self, headings: torch.Tensor, targets: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """`task_error` and `jacobian` together (a robot computes both from one pass of its kinematics)."""
+        return self.task_error(headings, targets), self.jacobian(headings)
+
     def tip_error(self, headings: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         """Distance from the tip to the target, (...), computed in float64 and returned as float32.
 

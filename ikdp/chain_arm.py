@@ -428,6 +428,9 @@ class ChainArm:
         """
         joints = self._as_joints(joints)
         axis_frames, origins, _, ee_position = self._joint_frames(joints)
+        return self._jacobian_from(joints, axis_frames, origins, ee_position)
+
+    def _jacobian_from(self, joints, axis_frames, origins, ee_position) -> torch.Tensor:
         axes = axis_frames[..., :, 2]  # (..., J, 3) world axes: a joint's motion leaves its own axis alone
         revolute = ~self._constants_like(joints)["prismatic"]
         linear = torch.where(
@@ -445,11 +448,23 @@ class ChainArm:
         in the base frame (radians; its norm is the geodesic rotation error).
         """
         rotation, position = self.end_effector_frame(joints)
+        return self._task_error_from(rotation, position, targets)
+
+    def _task_error_from(self, rotation, position, targets: torch.Tensor) -> torch.Tensor:
         position_error = targets[..., :3] - position
         if self.target == "position":
             return position_error
         relative = quaternion_multiply(targets[..., 3:7], quaternion_conjugate(matrix_to_quaternion(rotation)))
         return torch.cat([position_error, quaternion_to_axis_angle(relative)], dim=-1)
+
+    def task_error_and_jacobian(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """`task_error` and `jacobian` from one pass of the forward kinematics: a refinement step and the
+        denoiser's DLS feature need both, and the kinematics was a sixth of a refinement step's time."""
+        joints = self._as_joints(joints)
+        axis_frames, origins, rotation, position = self._joint_frames(joints)
+        return self._task_error_from(rotation, position, targets), self._jacobian_from(
+            joints, axis_frames, origins, position
+        )
 
     def position_error(self, joints, targets: torch.Tensor) -> torch.Tensor:
         """Distance from the end effector to the target's position, (...), metres.

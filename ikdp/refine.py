@@ -145,15 +145,22 @@ def damped_least_squares(
     for _ in range(steps):
         penetrations = None
         if task is None:
-            error = clamp_task_error(arm.task_error(joints, targets), arm.position_dim, max_position, math.pi / 4)
-            jacobian = arm.jacobian(joints)
+            error, jacobian = arm.task_error_and_jacobian(joints, targets)
+            error = clamp_task_error(error, arm.position_dim, max_position, math.pi / 4)
         else:
             error, jacobian = task.linearize(joints, targets)
             penetrations = task.penetrations(joints)
         step = prioritized_step(jacobian, error, penetrations, damping**2)
         moved = arm.normalize_joints(joints + step)
         blocked = arm.blocked_by_limits(joints, step)
-        if blocked is not None and bool(blocked.any()):
+        if blocked is None or not bool(blocked.any()):
+            pass
+        elif task is None:  # only the poses with a blocked joint try the step without it: a few in a thousand
+            rows = blocked.any(dim=-1)
+            held_step = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], damping**2)
+            row_targets = targets.expand(*joints.shape[:-1], targets.shape[-1])[rows]
+            moved[rows] = better_of(arm, row_targets, moved[rows], arm.normalize_joints(joints[rows] + held_step))
+        else:  # a task's penetrations and holds are laid out over the whole batch
             held_step = prioritized_step(jacobian, error, penetrations, damping**2, ~blocked)  # blocked columns zeroed
             moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
         joints = moved if task is None else task.hold(moved)

@@ -128,6 +128,15 @@ def test_jacobian_matches_autograd(name, panda):
         torch.testing.assert_close(-error_rows, jacobian[row], atol=1e-9, rtol=0)
 
 
+@pytest.mark.parametrize("name", ["panda", "mixed", "position"])
+def test_the_error_and_jacobian_from_one_kinematics_pass_are_the_separate_ones(name, panda):
+    arm = {"panda": panda, "mixed": mixed_arm()}.get(name) or spatial_arm(3)
+    joints = poses(arm, 6, seed=2).reshape(2, 3, -1)
+    targets = arm.end_effector(poses(arm, 6, seed=3)).reshape(2, 3, -1)
+    error, jacobian = arm.task_error_and_jacobian(joints, targets)
+    assert torch.equal(error, arm.task_error(joints, targets)) and torch.equal(jacobian, arm.jacobian(joints))
+
+
 def test_angular_rows_are_the_quaternions_rate_anywhere(panda):
     # omega = 2 vec(dq/dt * conj(q)): the quaternion's own derivative, away from the target too.
     pose = poses(panda, 1, seed=2)[0]

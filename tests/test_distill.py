@@ -219,7 +219,9 @@ def test_without_the_match_term_the_teachers_ode_is_not_run(tiny_checkpoint, tmp
     distill(config)
     assert calls == [16, 16]  # with the match term: the teacher's ODE once a step
     calls.clear()
-    student = torch.load(distill(replace(config, match_weight=0.0, output=str(tmp_path / "free.pt"))), weights_only=True)
+    student = torch.load(
+        distill(replace(config, match_weight=0.0, output=str(tmp_path / "free.pt"))), weights_only=True
+    )
     assert calls == [] and student["train"]["match_weight"] == 0.0 and student["train"]["step"] == 2
 
 

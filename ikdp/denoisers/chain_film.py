@@ -109,13 +109,13 @@ class ChainFiLMDenoiser(nn.Module):
         """(M, D) noisy sample, (M, target_dim) target -> the input features (M, F): x_t, the task error and the
         DLS step in x units; and that step in radians per joint, (M, J), for the skip."""
         joints = self.representation.decode(x, clamp=not self.config.kinematics_past_limits)
-        error = self.arm.task_error(joints, target)  # (M, E)
-        jacobian = self.arm.jacobian(joints)
+        error, jacobian = self.arm.task_error_and_jacobian(joints, target)  # (M, E), (M, E, J)
         step = dls_step(jacobian, error, self.damping_squared)
         if self.config.limit_aware_step:
             blocked = self.arm.blocked_by_limits(joints, step)
-            held = dls_step(jacobian * ~blocked[..., None, :], error, self.damping_squared)  # without those joints
-            step = torch.where(blocked.any(-1, keepdim=True), held, step)
+            rows = blocked.any(-1)  # the poses with a joint on a limit pushed out: solved again without those joints
+            held = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], self.damping_squared)
+            step = step.index_put((rows,), held)
         return torch.cat((x, error, step / self.half_range), dim=-1), step  # the feature in x units
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
