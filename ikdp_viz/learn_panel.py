@@ -86,5 +86,6 @@ def build_compare(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
         "compare with", COMPARE_CHOICES, initial_value="off",
         hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn beside with its own "
         "trail; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ follow the deterministic ODE; "
-        "teacher: the teacher's run the distilled student learnt to match; student: the student's few steps",
+        "teacher: the teacher's deterministic run a distilled student is trained to match; "
+        "student: the student's few steps",
     )  # fmt: skip

@@ -21,7 +21,7 @@ from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import checkable, final_violations, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
-from ikdp_viz.student import sampler_label, solve_title, student_sampling, target_title
+from ikdp_viz.student import matched_its_teacher, sampler_label, solve_title, student_sampling, target_title
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
 PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first (deliver 6): 5 steps, about 40 ms here
@@ -65,7 +65,7 @@ class SolveRequest:
 
     def compare_title(self, steps: int) -> str:
         if self.solver is self.student and self.compare_spacing is not None:  # the run it was distilled from
-            return target_title(str(self.compare_sampler), steps)
+            return target_title(str(self.compare_sampler), steps, matched_its_teacher(self.student))
         return solve_title(self.compared_by, self.student, str(self.compare_sampler), steps)
 
     @property

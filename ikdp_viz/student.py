@@ -104,10 +104,18 @@ def solve_title(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str, 
     return (f"{who.capitalize()}: " if who else "") + sampler_title(sampler, steps)
 
 
-def target_title(sampler: str, steps: int) -> str:
-    """The label over the teacher's run a student was distilled to match (short: it sits over a narrow view)."""
+def matched_its_teacher(student: ikdp.Solver) -> bool:
+    """Whether the student's (last) distillation matched the teacher's run from the same noise: a run with
+    `--match-weight 0` learnt from the FK miss and the teacher's DDPM samples instead (records before the option
+    have no weight: they matched)."""
+    return float(student.metadata.get("train", {}).get("match_weight", 1.0)) > 0
+
+
+def target_title(sampler: str, steps: int, matched: bool = True) -> str:
+    """The label over the teacher's run from the student's x_T (short: it sits over a narrow view); "what the student
+    learnt to match" only where its distillation did."""
     short = {"dpmpp2m": "DPM-Solver++"}.get(sampler, sampler.upper())
-    return f"Teacher: {short}, {steps} steps, what the student learnt to match"
+    return f"Teacher: {short}, {steps} steps, " + ("what the student learnt to match" if matched else "same x_T")
 
 
 def sampler_label(solver: ikdp.Solver, student: ikdp.Solver | None, sampler: str) -> str:

@@ -13,7 +13,15 @@ from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
 from ikdp_viz.messages import ShowSolve
-from ikdp_viz.student import STUDENT, TEACHER, find_student, is_student_of, model_and_student
+from ikdp_viz.student import (
+    STUDENT,
+    TEACHER,
+    find_student,
+    is_student_of,
+    matched_its_teacher,
+    model_and_student,
+    target_title,
+)
 
 K = 4
 STUDENT_STEPS = 2
@@ -184,3 +192,15 @@ def test_a_folders_checkpoints_are_read_once_for_the_dropdown_and_the_student(mo
     assert find_student(teacher, folder) is not None
     ModelChoices(list_checkpoints(folder), teacher, folder).refresh(teacher)
     assert sorted(reads) == sorted(folder.glob("*.pt"))  # each file once
+
+
+def test_the_teachers_run_is_called_what_the_student_matched_only_where_its_distillation_matched_it():
+    """A student distilled with --match-weight 0 learnt from the FK miss and the DDPM's samples, not from the teacher's
+    ODE run: the comparison's label must not say it learnt to match that run."""
+    from types import SimpleNamespace
+
+    matched, free = ({"train": {"match_weight": weight}} for weight in (1.0, 0.0))
+    old = {"train": {}}  # a record from before the option: it matched
+    assert [matched_its_teacher(SimpleNamespace(metadata=m)) for m in (matched, free, old)] == [True, False, True]
+    assert target_title("dpmpp2m", 16, matched=False) == "Teacher: DPM-Solver++, 16 steps, same x_T"
+    assert ikdp.load("ikdp_panda_4step").metadata["train"]["match_weight"] == 0.0  # the shipped one's last stage
