@@ -459,7 +459,7 @@ class ChainArm:
 
     def task_error_and_jacobian(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """`task_error` and `jacobian` from one pass of the forward kinematics: a refinement step and the
-        denoiser's DLS feature need both, and the kinematics was a sixth of a refinement step's time."""
+        denoiser's DLS feature need both, and the second pass was about a tenth of a refinement step's time."""
         joints = self._as_joints(joints)
         axis_frames, origins, rotation, position = self._joint_frames(joints)
         return self._task_error_from(rotation, position, targets), self._jacobian_from(
