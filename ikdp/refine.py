@@ -153,14 +153,15 @@ def damped_least_squares(
         step = prioritized_step(jacobian, error, penetrations, damping**2)
         moved = arm.normalize_joints(joints + step)
         blocked = arm.blocked_by_limits(joints, step)
-        if blocked is not None and bool(blocked.any()) and task is None:
-            rows = blocked.any(dim=-1)  # only these poses try the step without their blocked joints: a few in 1000
-            held_step = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], damping**2)
-            row_targets = targets.expand(*joints.shape[:-1], targets.shape[-1])[rows]
-            moved[rows] = better_of(arm, row_targets, moved[rows], arm.normalize_joints(joints[rows] + held_step))
-        elif blocked is not None and bool(blocked.any()):  # a task's penetrations and holds span the whole batch
-            held_step = prioritized_step(jacobian, error, penetrations, damping**2, ~blocked)  # blocked columns zeroed
-            moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
+        if blocked is not None and bool(blocked.any()):
+            if task is None:  # only the poses with a blocked joint try the step without it: a few in a thousand
+                rows = blocked.any(dim=-1)
+                held_step = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], damping**2)
+                row_targets = targets.expand(*joints.shape[:-1], targets.shape[-1])[rows]
+                moved[rows] = better_of(arm, row_targets, moved[rows], arm.normalize_joints(joints[rows] + held_step))
+            else:  # a task's penetrations and holds span the whole batch
+                held_step = prioritized_step(jacobian, error, penetrations, damping**2, ~blocked)  # blocked: zeroed
+                moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
         joints = moved if task is None else task.hold(moved)
     return joints.to(dtype)
 

@@ -113,9 +113,10 @@ class ChainFiLMDenoiser(nn.Module):
         step = dls_step(jacobian, error, self.damping_squared)
         if self.config.limit_aware_step:
             blocked = self.arm.blocked_by_limits(joints, step)
-            rows = blocked.any(-1)  # the poses with a joint on a limit pushed out: solved again without those joints
-            held = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], self.damping_squared)
-            step = step.index_put((rows,), held)
+            # every row, not only the blocked ones: picking rows by a mask syncs with the host, which a CUDA-graph
+            # capture of the sampling loop (ikdp/cuda_graph.py) cannot do
+            held = dls_step(jacobian * ~blocked[..., None, :], error, self.damping_squared)  # without those joints
+            step = torch.where(blocked.any(-1, keepdim=True), held, step)
         return torch.cat((x, error, step / self.half_range), dim=-1), step  # the feature in x units
 
     def denoise(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> torch.Tensor:
