@@ -47,7 +47,13 @@ def save_checkpoint(path: str | Path, payload: dict) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(path)
-    payload = {"format": FORMAT, "version": VERSION, **payload}
+    save_atomically(path, {"format": FORMAT, "version": VERSION, **payload})
+
+
+def save_atomically(path: str | Path, payload: dict) -> None:
+    """`torch.save(payload)` to `path` (its folder must exist) so that a reader sees the old file or the new one,
+    never half of one; two writers of one path each leave a whole file, the later one."""
+    path = Path(path)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(handle, "wb") as file:
@@ -57,7 +63,7 @@ def save_checkpoint(path: str | Path, payload: dict) -> None:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)  # mkstemp makes it private; a checkpoint is an ordinary file
-        os.replace(temporary, path)  # a reader sees the old file or the new one, never half of one
+        os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise

@@ -38,10 +38,9 @@ import torch
 from tqdm import tqdm
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
-from ikdp.distill_reference import PoseStream, energy_distance, mean_distance
+from ikdp.distill_reference import PoseStream, energy_distance, mean_distance, refined_in_place
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
-from ikdp.refine import damped_least_squares
 from ikdp.samplers import DDIMSampler, make_sampler
 from ikdp.solver import load, model_from_checkpoint
 from ikdp.train import parse_config, save_on_interrupt
@@ -76,6 +75,9 @@ class DistillConfig:
     # damped least-squares steps taken from the teacher's pose before the student is asked to match it (0: none):
     # the goal then reaches the target in the teacher's own mode, so matching it and reaching the target agree
     refine_teacher_steps: int = 0
+    # damped least-squares steps taken from each of the teacher's DDPM samples the distribution term compares with, in
+    # its own mode (0: none): the student is then drawn toward the teacher's spread on the target, not off it
+    refine_reference_steps: int = 0
     init: str = ""  # a student checkpoint of the same teacher to start from (empty: the teacher's weights)
     # a robot student with the denoiser's DLS skip (its gain, new and learnt, starts at 1 where the noise is small):
     # each evaluation may then add a damped least-squares step toward the target to its estimate
@@ -106,6 +108,7 @@ def validate(config: DistillConfig) -> None:
     nonnegative = {"threads": config.threads, "eval_targets": config.eval_targets}
     nonnegative |= {
         "refine_teacher_steps": config.refine_teacher_steps,
+        "refine_reference_steps": config.refine_reference_steps,
         "distribution_weight": config.distribution_weight,
         "reference_pool": config.reference_pool,
     }
@@ -123,6 +126,8 @@ def validate(config: DistillConfig) -> None:
             raise ValueError(f"{name}: needs noises_per_target 2 or more (pairs of poses for one target)")
     if config.match_weight == 0 and config.distribution_weight == 0:
         raise ValueError("match_weight: with 0 nothing ties the student to its teacher; give distribution_weight > 0")
+    if config.refine_reference_steps > 0 and config.distribution_weight == 0:
+        raise ValueError("refine_reference_steps: it refines the DDPM's samples; give distribution_weight > 0")
     if config.reference_pool > 0 and config.distribution_weight == 0:
         raise ValueError("reference_pool: the pool is the distribution term's reference; give distribution_weight > 0")
 
@@ -173,21 +178,6 @@ def teacher_poses(teacher: IKDiffusion, config: DistillConfig, noise: torch.Tens
     if config.refine_teacher_steps:
         joints = refined_in_place(teacher.arm, joints, targets, config.refine_teacher_steps)
     return teacher.representation.encode(joints).clone()  # a plain tensor, not an inference one
-
-
-# how far (joint-space norm, radians) the refinement may move a teacher's pose and keep it: past that the solver left
-# the teacher's mode (from its far misses, 3 steps moved some Panda poses by 7 rad), and the student keeps the original
-REFINE_MAX_MOVE = 0.5
-
-
-def refined_in_place(arm, joints: torch.Tensor, targets: torch.Tensor, steps: int) -> torch.Tensor:
-    """(B, J) poses -> each pose after `steps` damped least-squares steps where that misses the target by less and
-    stays within REFINE_MAX_MOVE of it; the pose as it was elsewhere."""
-    refined = damped_least_squares(arm, joints, targets, steps=steps)
-    closer = arm.task_error(refined, targets).norm(dim=-1) < arm.task_error(joints, targets).norm(dim=-1)
-    near = (refined - joints).norm(dim=-1) < REFINE_MAX_MOVE  # a planar heading wrapped past pi reads far: kept as was
-    keep = closer & near
-    return torch.where(keep[:, None], refined, joints)
 
 
 @torch.no_grad()
@@ -341,7 +331,8 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         writer.add_scalar("eval/tip_error_median", metrics.get("tip_error_median", float("nan")), step)
 
     arm = student.arm
-    stream = PoseStream(teacher, prior, config, device)  # a reference pool is drawn here, before the first step
+    # a reference pool is drawn here, before the first step, or read where an earlier run of this teacher drew it
+    stream = PoseStream(teacher, prior, config, device, teacher_path, pool_folder=output.parent / "reference_pools")
     interrupted = False
     progress = tqdm(total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True)
     student.train()

@@ -281,3 +281,56 @@ def test_a_robot_student_with_the_dls_skip_starts_from_the_teacher_or_a_student_
     assert max(float((moved[name] - value).abs().max()) for name, value in started.items()) < 0.01
     with pytest.raises(ValueError, match="has another network than its teacher"):  # a skip student as a plain start
         distill(small_config(tmp_path / "back", "ikdp_panda_cpu", **robot, init=str(skip)))
+
+
+def test_a_reference_pool_is_kept_for_the_next_run_of_the_same_teacher_and_redrawn_when_damaged(
+    tiny_checkpoint, tmp_path, monkeypatch, capsys
+):
+    import ikdp.distill_reference as reference_module
+    from ikdp.distill_reference import PoseStream
+
+    solver = ikdp.load(tiny_checkpoint)
+    config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, reference_pool=6)
+    folder = tmp_path / "pools"
+
+    def stream(config):
+        return PoseStream(solver.model, solver.prior, config, torch.device("cpu"), tiny_checkpoint, folder)
+
+    drawn = []
+    real = reference_module.teacher_samples
+    monkeypatch.setattr(reference_module, "teacher_samples", lambda *a: drawn.append(len(a[1])) or real(*a))
+    first = stream(config).pool
+    (kept,) = folder.iterdir()
+    assert drawn == [24] and kept.name.startswith(f"{tiny_checkpoint.stem}-")
+    again = stream(config).pool  # the next run reads it: no DDPM
+    assert drawn == [24] and torch.equal(again[0], first[0]) and torch.equal(again[1], first[1])
+    assert "read from" in capsys.readouterr().err
+    stream(replace(config, seed=5))  # another seed: another pool, another file
+    assert drawn == [24, 24] and len(list(folder.iterdir())) == 2
+    kept.write_bytes(kept.read_bytes()[:100])  # a run killed while copying it, say: drawn again and replaced
+    redrawn = stream(config).pool
+    assert drawn == [24, 24, 24] and torch.equal(redrawn[1], first[1])
+    assert "drawing it again" in capsys.readouterr().err
+    assert torch.equal(stream(config).pool[1], first[1]) and drawn == [24, 24, 24]
+
+
+def test_refined_reference_samples_reach_their_targets_in_their_own_mode(tiny_chain_checkpoint):
+    from ikdp.distill_reference import REFINE_MAX_MOVE, teacher_samples
+
+    solver = ikdp.load(tiny_chain_checkpoint)
+    model, arm = solver.model, solver.model.arm
+    targets = arm.end_effector(solver.prior.sample(64, arm, generator=torch.Generator().manual_seed(2)))
+    raw = model.representation.decode(teacher_samples(model, targets, torch.Generator().manual_seed(3)))
+    refined = model.representation.decode(teacher_samples(model, targets, torch.Generator().manual_seed(3), 3))
+    before, after = arm.task_error(raw, targets).norm(dim=-1), arm.task_error(refined, targets).norm(dim=-1)
+    moved = (refined - raw).norm(dim=-1)
+    assert (after <= before + 1e-6).all() and (after < 0.5 * before).any()
+    assert (moved < REFINE_MAX_MOVE).all()
+
+
+def test_refining_the_reference_needs_the_distribution_term(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["--refine-reference-steps", "3", "--output", str(tmp_path / "s.pt")])
+    assert capsys.readouterr().err.strip() == (
+        "ikdp-distill: error: refine_reference_steps: it refines the DDPM's samples; give distribution_weight > 0"
+    )
