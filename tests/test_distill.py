@@ -334,3 +334,23 @@ def test_refining_the_reference_needs_the_distribution_term(tmp_path, capsys):
     assert capsys.readouterr().err.strip() == (
         "ikdp-distill: error: refine_reference_steps: it refines the DDPM's samples; give distribution_weight > 0"
     )
+
+
+def test_the_distance_form_of_the_fk_miss_keeps_pulling_where_the_square_fades():
+    from ikdp.distill import fk_miss
+
+    span = 1.3
+    misses = torch.tensor([0.0, 5e-4, 0.02], requires_grad=True)  # metres: none, half a millimetre, two centimetres
+    distance = fk_miss((misses / span) ** 2, "distance", span)
+    assert distance[0] == 0 and torch.isclose(distance[2], (misses[2] - 1e-3) / span, rtol=0.01)  # the miss, less 1 mm
+    (pull,) = torch.autograd.grad(distance.sum(), misses)
+    squared = fk_miss((misses / span) ** 2, "squared", span)
+    (square_pull,) = torch.autograd.grad(squared.sum(), misses)
+    assert pull[1] / pull[2] > 0.4 and square_pull[1] / square_pull[2] < 0.03  # at 0.5 mm: ~0.45 of the pull, not 1/40
+
+
+def test_a_run_with_the_distance_form_records_it(tiny_checkpoint, tmp_path):
+    student = torch.load(
+        distill(small_config(tmp_path, tiny_checkpoint, tip_loss="distance", steps=2)), weights_only=True
+    )
+    assert student["train"]["tip_loss"] == "distance" and student["train"]["step"] == 2
