@@ -8,8 +8,8 @@ the few-step sampler unrolled and trained end to end, as in progressive distilla
     x_T ~ N(0, I); poses ~ prior; targets = FK(poses)
     teacher: x_T --(teacher_sampler, teacher_steps)--> x0_teacher                 (no gradient)
     student: x_T --(DDIM, student_steps, the student's x̂0 at each step)--> x0_student
-    loss = match_weight * |x0_student - x0_teacher|^2 + tip_loss_weight * FK miss of x0_student  (fk_miss: squared
-           or the distance)
+    loss = match_weight * |x0_student - x0_teacher|^2 + tip_loss_weight * FK miss of x0_student, squared
+           + tip_distance_weight * FK miss of x0_student                                (fk_distance)
            + spread_weight * (mean distance of a target's student poses - the teacher's)^2   (spread_miss)
            + distribution_weight * energy distance to the teacher's DDPM samples      (energy_distance)
 
@@ -61,10 +61,11 @@ class DistillConfig:
     # weight of the match to the teacher's ODE endpoint from the same noise (0: off, and the teacher's ODE is not run;
     # the distribution term then alone keeps the student's poses where the teacher's DDPM puts them)
     match_weight: float = 1.0
-    tip_loss_weight: float = 2000.0  # weight of the FK miss of the student's pose (ikdp_n4_2step's; at 100 it lost)
-    # the FK miss as its square (training's consistency term) or as the distance itself (smoothed below a millimetre):
-    # the square's pull fades as a pose nears its target, where the distribution term's pull does not
-    tip_loss: Literal["squared", "distance"] = "squared"
+    # weight of the squared FK miss of the student's pose (training's consistency term; ikdp_n4_2step's; at 100 it lost)
+    tip_loss_weight: float = 2000.0
+    # weight of the FK miss itself, its distance (smoothed below a millimetre; 0: off): the square's pull fades as a
+    # pose nears its target, where the distribution term's pull does not
+    tip_distance_weight: float = 0.0
     # weight of the spread term: the student's poses for one target as far apart on average as the teacher's from the
     # same noises (0: off). Without it a Panda student's K = 16 samples drew together (0.43 x the teacher's)
     spread_weight: float = 0.0
@@ -117,6 +118,7 @@ def validate(config: DistillConfig) -> None:
         "reference_pool": config.reference_pool,
     }
     nonnegative |= {"tip_loss_weight": config.tip_loss_weight, "spread_weight": config.spread_weight}
+    nonnegative |= {"tip_distance_weight": config.tip_distance_weight}
     nonnegative |= {"match_weight": config.match_weight}
     for name, value in nonnegative.items():
         if value < 0:
@@ -139,11 +141,9 @@ def validate(config: DistillConfig) -> None:
 DISTANCE_SMOOTHING = 1e-3  # metres: below this the distance form of the FK miss turns quadratic (no kink at zero)
 
 
-def fk_miss(consistency: torch.Tensor, form: str, span: float) -> torch.Tensor:
-    """(B,) the FK term of each pose from `consistency` (B,), the squared miss over the arm's span squared (rotation
-    included): itself ("squared"), or its square root, pseudo-Huber smoothed ("distance")."""
-    if form == "squared":
-        return consistency
+def fk_distance(consistency: torch.Tensor, span: float) -> torch.Tensor:
+    """(B,) each pose's FK miss as a distance over the arm's span, from `consistency` (B,), the squared miss over the
+    span squared (rotation included): its square root, pseudo-Huber smoothed below DISTANCE_SMOOTHING."""
     smoothing = (DISTANCE_SMOOTHING / span) ** 2
     return (consistency + smoothing).sqrt() - math.sqrt(smoothing)
 
@@ -363,7 +363,9 @@ def distill(config: DistillConfig, command: str = "") -> Path:
             targets = arm.end_effector(joints)  # (B, target_dim)
             pose = unrolled_student(student, sampler, noise, targets)  # (B, D)
             consistency, tip_miss = student.consistency_miss(pose, joints, targets)
-            loss = config.tip_loss_weight * fk_miss(consistency, config.tip_loss, arm.span).mean()
+            loss = config.tip_loss_weight * consistency.mean()
+            if config.tip_distance_weight > 0:
+                loss = loss + config.tip_distance_weight * fk_distance(consistency, arm.span).mean()
             match, spread = pose.new_zeros(1), pose.new_zeros(1)
             if config.match_weight > 0 or config.spread_weight > 0:  # both need the teacher's ODE endpoint
                 goal = teacher_poses(teacher, config, noise, targets)  # (B, D)

@@ -337,20 +337,21 @@ def test_refining_the_reference_needs_the_distribution_term(tmp_path, capsys):
 
 
 def test_the_distance_form_of_the_fk_miss_keeps_pulling_where_the_square_fades():
-    from ikdp.distill import fk_miss
+    from ikdp.distill import fk_distance
 
     span = 1.3
     misses = torch.tensor([0.0, 5e-4, 0.02], requires_grad=True)  # metres: none, half a millimetre, two centimetres
-    distance = fk_miss((misses / span) ** 2, "distance", span)
+    distance = fk_distance((misses / span) ** 2, span)
     assert distance[0] == 0 and torch.isclose(distance[2], (misses[2] - 1e-3) / span, rtol=0.01)  # the miss, less 1 mm
     (pull,) = torch.autograd.grad(distance.sum(), misses)
-    squared = fk_miss((misses / span) ** 2, "squared", span)
-    (square_pull,) = torch.autograd.grad(squared.sum(), misses)
+    (square_pull,) = torch.autograd.grad(((misses / span) ** 2).sum(), misses)
     assert pull[1] / pull[2] > 0.4 and square_pull[1] / square_pull[2] < 0.03  # at 0.5 mm: ~0.45 of the pull, not 1/40
 
 
-def test_a_run_with_the_distance_form_records_it(tiny_checkpoint, tmp_path):
-    student = torch.load(
-        distill(small_config(tmp_path, tiny_checkpoint, tip_loss="distance", steps=2)), weights_only=True
-    )
-    assert student["train"]["tip_loss"] == "distance" and student["train"]["step"] == 2
+def test_a_run_with_the_distance_term_records_it_and_a_negative_weight_is_refused(tiny_checkpoint, tmp_path, capsys):
+    config = small_config(tmp_path, tiny_checkpoint, tip_distance_weight=30.0, steps=2)
+    student = torch.load(distill(config), weights_only=True)
+    assert student["train"]["tip_distance_weight"] == 30.0 and student["train"]["step"] == 2
+    with pytest.raises(SystemExit):
+        main(["--tip-distance-weight", "-1", "--output", str(tmp_path / "s.pt")])
+    assert capsys.readouterr().err.strip().endswith("tip_distance_weight: got -1.0, expected 0 or more")
