@@ -100,16 +100,7 @@ class PoseStream:
         self.refine_steps = config.refine_reference_steps
         self.pool = None
         if self.with_reference and config.reference_pool:
-            size, seed = config.reference_pool, config.seed + 1
-            kept = teacher_path is not None and pool_folder is not None
-            key = pool_key(teacher_path, size, self.per_target, seed, self.refine_steps) if kept else {}
-            path = pool_path(pool_folder, key) if kept else None
-            dims = (teacher.arm.num_joints, teacher.representation.dim)
-            self.pool = read_pool(path, key, *dims) if kept else None
-            if self.pool is None:
-                self.pool = self.draw_pool(size, torch.Generator().manual_seed(seed))
-                if kept:
-                    write_pool(path, key, *self.pool)
+            self.pool = self.kept_pool(config.reference_pool, config.seed + 1, teacher_path, pool_folder)
 
     def draw(self, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor | None]:
         count = self.batch // self.per_target
@@ -125,6 +116,19 @@ class PoseStream:
         if self.with_reference:
             reference = teacher_samples(self.teacher, arm.end_effector(rows), generator, self.refine_steps)
         return rows, reference
+
+    def kept_pool(self, size: int, seed: int, teacher_path, pool_folder) -> tuple[torch.Tensor, torch.Tensor]:
+        """The pool read from `pool_folder` where an earlier run drew it; else drawn, and written there (with no
+        folder or teacher file given: drawn only)."""
+        if teacher_path is None or pool_folder is None:
+            return self.draw_pool(size, torch.Generator().manual_seed(seed))
+        key = pool_key(teacher_path, size, self.per_target, seed, self.refine_steps)
+        path = pool_path(pool_folder, key)
+        pool = read_pool(path, key, self.teacher.arm.num_joints, self.teacher.representation.dim)
+        if pool is None:
+            pool = self.draw_pool(size, torch.Generator().manual_seed(seed))
+            write_pool(path, key, *pool)
+        return pool
 
     def draw_pool(self, size: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         """(size, J) poses and (size, noises_per_target, D) DDPM samples for their targets, on the CPU."""
