@@ -26,7 +26,7 @@ from tqdm import tqdm
 from ikdp.model import IKDiffusion
 from ikdp.priors import PosePrior
 from ikdp.reference_pool_cache import pool_key, pool_path, read_pool, write_pool
-from ikdp.refine import damped_least_squares
+from ikdp.refine import better_of, damped_least_squares
 
 POOL_CHUNK = 512  # rows of one DDPM call while the pool is drawn
 
@@ -58,10 +58,8 @@ def refined_in_place(arm, joints: torch.Tensor, targets: torch.Tensor, steps: in
     """(B, J) poses -> each pose after `steps` damped least-squares steps where that misses the target by less and
     stays within REFINE_MAX_MOVE of it; the pose as it was elsewhere."""
     refined = damped_least_squares(arm, joints, targets, steps=steps)
-    closer = arm.task_error(refined, targets).norm(dim=-1) < arm.task_error(joints, targets).norm(dim=-1)
     near = (refined - joints).norm(dim=-1) < REFINE_MAX_MOVE  # a planar heading wrapped past pi reads far: kept as was
-    keep = closer & near
-    return torch.where(keep[:, None], refined, joints)
+    return torch.where(near[:, None], better_of(arm, targets, joints, refined), joints)
 
 
 @torch.no_grad()
