@@ -12,6 +12,7 @@ the few-step sampler unrolled and trained end to end, as in progressive distilla
            + tip_distance_weight * FK miss of x0_student                                (fk_distance)
            + spread_weight * (mean distance of a target's student poses - the teacher's)^2   (spread_miss)
            + distribution_weight * energy distance to the teacher's DDPM samples      (energy_distance)
+             (or, with --reference posterior, to samples of the true posterior: ikdp.posterior_pool)
 
 The noise picks the teacher's mode, so matching the teacher from the same x_T keeps the spread of
 its samples (no averaging of elbow-up and elbow-down into neither); the FK term pulls the student's
@@ -41,6 +42,7 @@ from tqdm import tqdm
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.distill_reference import PoseStream, energy_distance, mean_distance, refined_in_place
 from ikdp.model import IKDiffusion, ModelConfig
+from ikdp.posterior_pool import check_posterior_target
 from ikdp.priors import PosePrior
 from ikdp.samplers import DDIMSampler, make_sampler
 from ikdp.solver import load, model_from_checkpoint
@@ -74,6 +76,10 @@ class DistillConfig:
     # the teacher's DDPM for it, from other noises (0: off). Matching the teacher's ODE caps the student at the
     # ODE's fidelity, which on the relaxed planar model is 2-3 times further from the posterior than the DDPM's
     distribution_weight: float = 0.0
+    # what the distribution term compares with: the teacher's DDPM samples, or the true posterior's, drawn by rejection
+    # from the prior around the target (planar arms; needs --reference-pool): a student matched to the DDPM is capped
+    # at the DDPM's distance from the posterior
+    reference: Literal["teacher", "posterior"] = "teacher"
     # targets whose DDPM samples (noises_per_target each) are drawn once, before training, and reused by every step
     # (0: drawn afresh each step, where the teacher's DDPM costs most of a step)
     reference_pool: int = 0
@@ -136,6 +142,13 @@ def validate(config: DistillConfig) -> None:
         raise ValueError("refine_reference_steps: it refines the DDPM's samples; give distribution_weight > 0")
     if config.reference_pool > 0 and config.distribution_weight == 0:
         raise ValueError("reference_pool: the pool is the distribution term's reference; give distribution_weight > 0")
+    if config.reference == "posterior":
+        if config.distribution_weight == 0:
+            raise ValueError("reference: the posterior feeds the distribution term; give distribution_weight > 0")
+        if config.reference_pool == 0:
+            raise ValueError("reference: posterior samples are drawn once, into a pool; give reference_pool > 0")
+        if config.refine_reference_steps:
+            raise ValueError("refine_reference_steps: the posterior's samples reach their targets already; leave it 0")
 
 
 DISTANCE_SMOOTHING = 1e-3  # metres: below this the distance form of the FK miss turns quadratic (no kink at zero)
@@ -284,6 +297,8 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     teacher_path = teacher_solver.metadata["path"]
     teacher_payload = read_checkpoint(teacher_path)
     teacher, prior = teacher_solver.model, teacher_solver.prior
+    if config.reference == "posterior":
+        check_posterior_target(teacher.arm, Path(teacher_path).stem)
     student = student_network(teacher_payload, teacher_path, config.dls_skip).to(device)  # starts as the teacher
     if config.init and not (config.resume and output.exists()):
         student.load_state_dict(starting_student(config.init, teacher_path, student), strict=False)

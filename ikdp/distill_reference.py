@@ -24,6 +24,7 @@ import torch
 from tqdm import tqdm
 
 from ikdp.model import IKDiffusion
+from ikdp.posterior_pool import posterior_pool
 from ikdp.priors import PosePrior
 from ikdp.reference_pool_cache import pool_key, pool_path, read_pool, write_pool
 from ikdp.refine import better_of, damped_least_squares
@@ -96,6 +97,7 @@ class PoseStream:
         self.batch, self.per_target = config.batch, config.noises_per_target
         self.with_reference = config.distribution_weight > 0
         self.refine_steps = config.refine_reference_steps
+        self.reference = config.reference  # "teacher": its DDPM's samples; "posterior": rejection from the prior
         self.pool = None
         if self.with_reference and config.reference_pool:
             self.pool = self.kept_pool(config.reference_pool, config.seed + 1, teacher_path, pool_folder)
@@ -120,7 +122,7 @@ class PoseStream:
         folder or teacher file given: drawn only)."""
         if teacher_path is None or pool_folder is None:
             return self.draw_pool(size, torch.Generator().manual_seed(seed))
-        key = pool_key(teacher_path, size, self.per_target, seed, self.refine_steps)
+        key = pool_key(teacher_path, size, self.per_target, seed, self.refine_steps, self.reference)
         path = pool_path(pool_folder, key)
         pool = read_pool(path, key, self.teacher.arm.num_joints, self.teacher.representation.dim)
         if pool is None:
@@ -129,8 +131,11 @@ class PoseStream:
         return pool
 
     def draw_pool(self, size: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-        """(size, J) poses and (size, noises_per_target, D) DDPM samples for their targets, on the CPU."""
+        """(size, J) poses and (size, noises_per_target, D) reference samples for their targets, on the CPU: the
+        teacher's DDPM's, or the posterior's by rejection from the prior."""
         arm = self.teacher.arm
+        if self.reference == "posterior":
+            return posterior_pool(self.prior, arm, self.teacher.representation, size, self.per_target, generator)
         joints = self.prior.sample(size, arm, generator=generator)
         rows = joints.repeat_interleave(self.per_target, dim=0)
         samples = []

@@ -1,10 +1,11 @@
 """The distillation's reference pool, kept on disk: the teacher's DDPM samples are drawn once per teacher and pool.
 
 Drawing a Panda pool (4096 targets x 4 samples of the DDPM-100) takes six and a half minutes of one CPU thread; every
-run of `ikdp.distill` with the same teacher file, pool size, samples per target, seed and teacher refinement draws the
-same pool, so the first run writes it to `<output folder>/reference_pools/` and the others read it. The file name
-carries the teacher file's hash: a retrained teacher under the same name draws its own. A file that is unreadable,
-holds code, or does not hold the pool it is named for is drawn again and replaced, never trusted.
+run of `ikdp.distill` with the same teacher file, pool size, samples per target, seed, reference (the teacher's DDPM or
+the posterior by rejection) and refinement draws the same pool, so the first run writes it to `<output
+folder>/reference_pools/` and the others read it. The file name carries the teacher file's hash: a retrained teacher
+under the same name draws its own. A file that is unreadable, holds code, or does not hold the pool it is named for is
+drawn again and replaced, never trusted.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ def file_digest(path: str | Path) -> str:
     return digest.hexdigest()[:12]
 
 
-def pool_key(teacher_path: str | Path, size: int, per_target: int, seed: int, refine_steps: int) -> dict:
+def pool_key(
+    teacher_path: str | Path, size: int, per_target: int, seed: int, refine_steps: int, reference: str = "teacher"
+) -> dict:
     """What makes two runs' pools the same pool."""
     teacher = Path(teacher_path)
     return {
@@ -39,12 +42,14 @@ def pool_key(teacher_path: str | Path, size: int, per_target: int, seed: int, re
         "per_target": per_target,
         "seed": seed,
         "refine_steps": refine_steps,
+        "reference": reference,
     }
 
 
 def pool_path(folder: str | Path, key: dict) -> Path:
     name = f"{Path(key['teacher']).stem}-{key['teacher_sha256']}-{key['size']}x{key['per_target']}"
-    return Path(folder) / f"{name}-seed{key['seed']}-dls{key['refine_steps']}.pt"
+    source = "posterior" if key["reference"] == "posterior" else f"dls{key['refine_steps']}"
+    return Path(folder) / f"{name}-seed{key['seed']}-{source}.pt"
 
 
 def read_pool(path: Path, key: dict, joint_count: int, dim: int) -> tuple[torch.Tensor, torch.Tensor] | None:
@@ -55,7 +60,8 @@ def read_pool(path: Path, key: dict, joint_count: int, dim: int) -> tuple[torch.
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
         joints, samples = payload["joints"], payload["samples"]
-        whole = payload["format"] == FORMAT and payload["key"] == key
+        written = {"reference": "teacher", **payload["key"]}  # pools kept before --reference existed: the teacher's
+        whole = payload["format"] == FORMAT and written == key
         whole = whole and tuple(joints.shape) == (key["size"], joint_count)
         whole = whole and tuple(samples.shape) == (key["size"], key["per_target"], dim)
         whole = whole and bool(torch.isfinite(joints).all() and torch.isfinite(samples).all())

@@ -355,3 +355,58 @@ def test_a_run_with_the_distance_term_records_it_and_a_negative_weight_is_refuse
     with pytest.raises(SystemExit):
         main(["--tip-distance-weight", "-1", "--output", str(tmp_path / "s.pt")])
     assert capsys.readouterr().err.strip().endswith("tip_distance_weight: got -1.0, expected 0 or more")
+
+
+def test_a_posterior_pool_holds_prior_poses_that_reach_each_target_in_several_modes(tiny_checkpoint, tmp_path):
+    from ikdp.distill_reference import PoseStream
+
+    solver = ikdp.load(tiny_checkpoint)
+    model, arm = solver.model, solver.model.arm
+    options = dict(noises_per_target=16, distribution_weight=1.0, reference_pool=5, reference="posterior")
+    config = small_config(tmp_path, tiny_checkpoint, **options)
+    folder = tmp_path / "pools"
+    joints, samples = PoseStream(model, solver.prior, config, torch.device("cpu"), tiny_checkpoint, folder).pool
+    assert joints.shape == (5, arm.num_joints) and samples.shape == (5, 16, model.representation.dim)
+    poses = model.representation.decode(samples.flatten(0, 1)).unflatten(0, (5, 16))
+    targets = arm.end_effector(joints)[:, None].expand(-1, 16, -1)
+    assert float(arm.tip_error(poses.flatten(0, 1), targets.flatten(0, 1)).max()) < 1e-3 * arm.span  # polished on
+    assert float((poses - poses.mean(1, keepdim=True)).norm(dim=-1).mean()) > 0.3  # spread over the posterior
+    (kept,) = folder.iterdir()
+    assert kept.name.endswith("-posterior.pt")
+    student = torch.load(distill(replace(config, steps=2, noises_per_target=4)), weights_only=True)
+    assert student["train"]["reference"] == "posterior"
+
+
+def test_a_pool_kept_before_the_reference_option_reads_as_the_teachers(tiny_checkpoint, tmp_path):
+    from ikdp.reference_pool_cache import pool_key, pool_path, read_pool, write_pool
+
+    key = pool_key(tiny_checkpoint, 2, 4, 1, 0)
+    older = {name: value for name, value in key.items() if name != "reference"}
+    path = pool_path(tmp_path, key)
+    write_pool(path, older, torch.zeros(2, 3), torch.zeros(2, 4, 6))
+    assert read_pool(path, key, 3, 6) is not None
+    assert read_pool(path, pool_key(tiny_checkpoint, 2, 4, 1, 0, "posterior"), 3, 6) is None
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--reference", "posterior"], "reference: the posterior feeds the distribution term"),
+        (["--reference", "posterior", "--distribution-weight", "1", "--noises-per-target", "2"], "give reference_pool"),
+        (
+            ["--reference", "posterior", "--distribution-weight", "1", "--noises-per-target", "2",
+             "--reference-pool", "8", "--refine-reference-steps", "2"],
+            "the posterior's samples reach their targets already",
+        ),
+        (
+            ["--teacher", "ikdp_panda_cpu", "--reference", "posterior", "--distribution-weight", "1",
+             "--noises-per-target", "2", "--reference-pool", "8"],
+            "ikdp_panda_cpu's targets have 7: use --reference teacher",
+        ),
+    ],
+)  # fmt: skip
+def test_a_posterior_reference_it_cannot_draw_is_refused_in_one_line(tmp_path, capsys, options, message):
+    with pytest.raises(SystemExit):
+        main([*options, "--output", str(tmp_path / "s.pt")])
+    error = capsys.readouterr().err
+    assert message in error and error.count("\n") == 1 and not (tmp_path / "s.pt").exists()
