@@ -89,6 +89,10 @@ class DistillConfig:
     # damped least-squares steps taken from each of the teacher's DDPM samples the distribution term compares with, in
     # its own mode (0: none): the student is then drawn toward the teacher's spread on the target, not off it
     refine_reference_steps: int = 0
+    # what the student's network predicts: what its teacher's does, or the clean pose itself ("sample"). A
+    # one-evaluation student of an epsilon teacher needs "sample": its x̂0 at t = T-1 divides the noise estimate's error
+    # by sqrt(alpha-bar), 4.9e-4 for the Panda's schedule (2,000 times)
+    student_prediction: Literal["teacher", "sample"] = "teacher"
     init: str = ""  # a student checkpoint of the same teacher to start from (empty: the teacher's weights)
     # a robot student with the denoiser's DLS skip (its gain, new and learnt, starts at 1 where the noise is small):
     # each evaluation may then add a damped least-squares step toward the target to its estimate
@@ -240,20 +244,26 @@ def measure_student(model: IKDiffusion, prior: PosePrior, config: DistillConfig,
 SKIP_WEIGHTS = {"denoiser.step_gain.weight", "denoiser.step_gain.bias"}  # the DLS skip's gain: what --dls-skip adds
 
 
-def student_network(teacher_payload: dict, teacher_path: str, dls_skip: bool) -> IKDiffusion:
+def student_network(
+    teacher_payload: dict, teacher_path: str, dls_skip: bool, prediction: str = "teacher"
+) -> IKDiffusion:
     """The teacher's network with its weights, to be trained as the student; with `dls_skip`, plus the DLS skip (its
-    gain's new layer starts at zero, so the gain starts at its schedule: 1 at low noise, 0 at high)."""
-    if not dls_skip:
+    gain's new layer starts at zero, so the gain starts at its schedule: 1 at low noise, 0 at high); with `prediction`
+    other than "teacher", its output read as that ("sample": the clean pose itself) from the first step on."""
+    if not dls_skip and prediction == "teacher":
         return model_from_checkpoint(teacher_payload, teacher_path)
     description = copy.deepcopy(teacher_payload["model"])
-    denoiser = description.get("denoiser") or {}
-    if denoiser.get("kind") != "chain_film":
-        raise ValueError(
-            f"dls_skip: for a robot's chain_film denoiser; {Path(teacher_path).stem} has {denoiser.get('kind')!r}"
-        )
-    if denoiser.get("dls_skip"):
-        raise ValueError(f"dls_skip: {Path(teacher_path).stem} has the DLS skip already; leave the option out")
-    denoiser["dls_skip"] = True
+    if dls_skip:
+        denoiser = description.get("denoiser") or {}
+        if denoiser.get("kind") != "chain_film":
+            raise ValueError(
+                f"dls_skip: for a robot's chain_film denoiser; {Path(teacher_path).stem} has {denoiser.get('kind')!r}"
+            )
+        if denoiser.get("dls_skip"):
+            raise ValueError(f"dls_skip: {Path(teacher_path).stem} has the DLS skip already; leave the option out")
+        denoiser["dls_skip"] = True
+    if prediction != "teacher":
+        description["prediction"] = prediction
     student = IKDiffusion(ModelConfig.from_dict(description))
     student.load_state_dict(model_from_checkpoint(teacher_payload, teacher_path).state_dict(), strict=False)
     return student
@@ -299,7 +309,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
     teacher, prior = teacher_solver.model, teacher_solver.prior
     if config.reference == "posterior":
         check_posterior_target(teacher.arm, Path(teacher_path).stem)
-    student = student_network(teacher_payload, teacher_path, config.dls_skip).to(device)  # starts as the teacher
+    student = student_network(teacher_payload, teacher_path, config.dls_skip, config.student_prediction).to(device)
     if config.init and not (config.resume and output.exists()):
         student.load_state_dict(starting_student(config.init, teacher_path, student), strict=False)
     sampler = student_sampler(student, config)

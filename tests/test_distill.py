@@ -410,3 +410,29 @@ def test_a_posterior_reference_it_cannot_draw_is_refused_in_one_line(tmp_path, c
         main([*options, "--output", str(tmp_path / "s.pt")])
     error = capsys.readouterr().err
     assert message in error and error.count("\n") == 1 and not (tmp_path / "s.pt").exists()
+
+
+def test_a_sample_predicting_student_of_an_epsilon_teacher_reads_its_network_output_as_the_pose(tmp_path):
+    from ikdp.train import TrainConfig, train
+
+    torch.manual_seed(0)
+    teacher_path = train(
+        TrainConfig(joints=3, steps=3, batch=32, hidden=32, blocks=1, timesteps=20, prediction="epsilon",
+                    eval_targets=4, save_every=1000, output=str(tmp_path / "eps.pt"), log_dir=str(tmp_path / "tb"))
+    )  # fmt: skip
+    payload = read_checkpoint(teacher_path)
+    teacher = ikdp.load(teacher_path).model
+    student = student_network(payload, str(teacher_path), dls_skip=False, prediction="sample")
+    assert teacher.config.prediction == "epsilon" and student.config.prediction == "sample"
+    weights = student.state_dict()
+    assert all(torch.equal(weights[name], value) for name, value in teacher.state_dict().items())
+    noise = torch.randn((4, student.representation.dim), generator=torch.Generator().manual_seed(1))
+    targets = torch.tensor([[1.0, 0.5], [0.0, -2.0], [1.5, 1.5], [-2.0, 0.0]])
+    with torch.no_grad():
+        pose = unrolled_student(student, student_sampler(student, DistillConfig(student_steps=1)), noise, targets)
+        output = student.denoiser(noise, torch.full((4,), 19), targets)
+    torch.testing.assert_close(pose, student.representation.project(output))  # x̂0 is the output, not eps's formula
+    config = small_config(tmp_path, teacher_path, student_steps=1, student_prediction="sample", steps=2)
+    solver = ikdp.load(distill(config))
+    assert solver.model.config.prediction == "sample"
+    assert solver.solve(targets, num_samples=2, sampler="ddim", steps=1).raw_angles.shape == (4, 2, 3)
