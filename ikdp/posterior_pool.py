@@ -56,6 +56,10 @@ def posterior_pool(
             generator=generator,
             max_draws=MAX_DRAWS,
         )
+        if not complete.any():  # a prior that never comes back near its own tips would loop here for ever
+            raise ValueError(
+                f"reference: none of {count} targets from the prior got {per_target} poses in {MAX_DRAWS} draws"
+            )
         joints.append(chunk[complete])
         samples.append(representation.encode(found.flatten(0, 1)).unflatten(0, (len(found), per_target)))
         have += len(found)

@@ -436,3 +436,17 @@ def test_a_sample_predicting_student_of_an_epsilon_teacher_reads_its_network_out
     solver = ikdp.load(distill(config))
     assert solver.model.config.prediction == "sample"
     assert solver.solve(targets, num_samples=2, sampler="ddim", steps=1).raw_angles.shape == (4, 2, 3)
+
+
+def test_a_posterior_pool_from_a_prior_that_never_lands_near_its_own_tips_stops_with_an_error(tiny_checkpoint):
+    import ikdp.posterior_pool as posterior
+
+    solver = ikdp.load(tiny_checkpoint)
+    arm, model = solver.model.arm, solver.model
+
+    class Scattered:  # each draw far from the last: no pose lands near another's tip
+        def sample(self, count, arm, generator):
+            return torch.rand((count, arm.num_joints), generator=generator) * 1e-9 + torch.rand(1, generator=generator)
+
+    with pytest.raises(ValueError, match="targets from the prior got 4 poses in"):
+        posterior.posterior_pool(Scattered(), arm, model.representation, 3, 4, torch.Generator().manual_seed(0))
