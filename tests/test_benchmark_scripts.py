@@ -78,3 +78,23 @@ def test_a_pipeline_row_names_its_sampler_refinement_and_precision():
 
     assert parse_pipeline("ddim:3:quadratic+5") == ("ddim", 3, "quadratic", 5, "float32")
     assert parse_pipeline("dpmpp2m:3:uniform+10/int8") == ("dpmpp2m", 3, "uniform", 10, "int8")
+
+
+def test_the_moonshot_line_names_only_rows_faster_than_random_starts_with_twice_their_valid_solutions():
+    from benchmarks.few_step_pipeline import moonshot
+
+    def row(ms, share, valid):
+        return {"ms_per_target": ms, "success_share": share, "valid_per_target": valid}
+
+    rows = {
+        "IKDP fast and many": row(0.5, 0.997, 13.0),
+        "IKDP fast, too few": row(0.5, 0.997, 12.0),
+        "IKDP slow": row(0.9, 0.999, 14.0),
+        "IKDP fast, unsolved": row(0.4, 0.990, 14.0),
+        "random starts + 20 DLS": row(0.75, 0.997, 6.3),
+    }
+    assert moonshot(rows, "random starts + 20 DLS", 0.995) == {
+        "baseline": "random starts + 20 DLS",
+        "met_by": ["IKDP fast and many"],
+    }
+    assert moonshot(rows, None, 0.995) is None
