@@ -24,9 +24,8 @@ import torch
 import tyro
 
 import ikdp
-from benchmarks.robot_benchmark import parse_sampler, pseudo_inverse, verdict, write
+from benchmarks.robot_benchmark import dls_from_random_starts, parse_sampler, pseudo_inverse, verdict, write
 from ikdp.evaluation.machine import machine_description
-from ikdp.refine import damped_least_squares
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
 
@@ -91,14 +90,7 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         runs[f"PseudoInverseIK {text}"] = pseudo_inverse(arm, targets, retries, iterations, config.seed)
     goals = targets[:, None].expand(-1, config.samples, -1)
     for dls_steps in config.random_start_steps:
-        runs[f"random starts + {dls_steps} DLS"] = lambda dls_steps=dls_steps: damped_least_squares(
-            arm,
-            arm.random_poses(goals.shape[0] * goals.shape[1], generator=torch.Generator().manual_seed(3)).unflatten(
-                0, goals.shape[:2]
-            ),
-            goals,
-            steps=dls_steps,
-        )  # the starts drawn inside the timing, as IKDP's noise is
+        runs[f"random starts + {dls_steps} DLS"] = lambda steps=dls_steps: dls_from_random_starts(arm, goals, steps)
     seconds: dict[str, list[float]] = {label: [] for label in runs}
     answers = {}
     for label, run in runs.items():  # warm-up, and the answers judged

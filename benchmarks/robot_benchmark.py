@@ -97,6 +97,14 @@ def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
     }
 
 
+def dls_from_random_starts(arm, goals: torch.Tensor, dls_steps: int) -> torch.Tensor:
+    """goals (B, K, target_dim) -> (B, K, J): `dls_steps` damped least-squares steps from uniform random starts within
+    the limits (the same starts every call), our own numerical baseline; the starts are drawn inside a timing of it,
+    as IKDP's noise is."""
+    starts = arm.random_poses(goals.shape[0] * goals.shape[1], generator=torch.Generator().manual_seed(3))
+    return damped_least_squares(arm, starts.unflatten(0, goals.shape[:2]), goals, steps=dls_steps)
+
+
 def pseudo_inverse(arm, targets: torch.Tensor, retries: int, iterations: int, seed: int):
     """PseudoInverseIK for pose targets (B, 7), built once: a call returns its solutions, (B, retries, J)."""
     import pytorch_kinematics as pk
@@ -193,11 +201,8 @@ def main(config: RobotBenchmarkConfig) -> dict:
         pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, out.angles, targets)}
     goals = targets[:, None].expand(-1, config.samples, -1)
     for dls_steps in config.random_start_steps:
-        starts = arm.random_poses(len(targets) * config.samples, generator=torch.Generator().manual_seed(3))
-        starts = starts.unflatten(0, (len(targets), config.samples))
         seconds, joints = median_seconds(
-            lambda starts=starts, dls_steps=dls_steps: damped_least_squares(arm, starts, goals, steps=dls_steps),
-            config.repeats,
+            lambda dls_steps=dls_steps: dls_from_random_starts(arm, goals, dls_steps), config.repeats
         )
         label = f"{config.samples} uniform random starts + {dls_steps} DLS steps"
         pipelines[label] = {"seconds_per_target": seconds / len(targets), **verdict(arm, joints, targets)}
