@@ -4,13 +4,15 @@ pytorch_kinematics' PseudoInverseIK tuned to the same share, in the same run (is
     OMP_NUM_THREADS=1 python benchmarks/few_step_pipeline.py --checkpoints ikdp_panda ikdp_panda_cpu
 
 On robot_benchmark's 1000 held-out pose targets, every IKDP pipeline `name:steps:spacing+refine` (K = 16
-samples, then `refine` limit-aware DLS steps; a `/int8` suffix samples with the model's int8 weights,
-`ikdp.load(..., precision="int8")`) and every PseudoInverseIK setting `retriesxiterations` is timed
-once per round, round-robin (so the machine's load hits all alike), `rounds` rounds, median quoted; a target
-is solved when one of its poses is within 1 mm and 1 degree. For each, the fastest row at a share of at least
-`success` is picked, and the ratio IKDP / PseudoInverseIK printed. Rows of DLS from uniform random starts
-(`random_start_steps`) are timed in the same rounds: the moonshot line names the IKDP rows faster than the fastest
-of them with at least twice its valid solutions. Writes benchmarks/results/few_step_pipeline.json.
+samples, then `refine` limit-aware DLS steps; `+refineRrestart`, e.g. `+8r20`, then gives the targets still
+unreached K fresh random starts and `restart` DLS steps, solve's `restart_steps`; a `/int8` suffix samples
+with the model's int8 weights, `ikdp.load(..., precision="int8")`) and every PseudoInverseIK setting
+`retriesxiterations` is timed once per round, round-robin (so the machine's load hits all alike), `rounds`
+rounds, median quoted; a target is solved when one of its poses is within 1 mm and 1 degree. For each, the
+fastest row at a share of at least `success` is picked, and the ratio IKDP / PseudoInverseIK printed. Rows of
+DLS from uniform random starts (`random_start_steps`, `steps` or `stepsRrestart` as above) are timed in the
+same rounds: the moonshot line names the IKDP rows faster than the fastest of them with at least twice its
+valid solutions. Writes benchmarks/results/few_step_pipeline.json.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import statistics
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import torch
 import tyro
@@ -33,7 +36,7 @@ RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
 @dataclass(frozen=True)
 class PipelineConfig:
     checkpoints: tuple[str, ...] = ("ikdp_panda", "ikdp_panda_cpu")  # paths or shipped names
-    pipelines: tuple[str, ...] = (  # name:steps:spacing+refine[/int8]
+    pipelines: tuple[str, ...] = (  # name:steps:spacing+refine[rRESTART][/int8]
         "dpmpp2m:3:uniform+10",
         "dpmpp2m:3:quadratic+10",
         "ddim:3:uniform+5",
@@ -45,7 +48,7 @@ class PipelineConfig:
     )
     pk_settings: tuple[str, ...] = ("8x20", "8x30", "16x20", "16x30")  # PseudoInverseIK retries x iterations
     # DLS steps from `samples` uniform random starts within the limits (our own numerical baseline; the moonshot's)
-    random_start_steps: tuple[int, ...] = (20,)
+    random_start_steps: tuple[str, ...] = ("20",)  # DLS steps[rRESTART]
     success: float = 0.995  # the share a pipeline must reach to be picked
     targets: int = 1000
     samples: int = 16
@@ -54,13 +57,28 @@ class PipelineConfig:
     output: Path = field(default=RESULTS)
 
 
-def parse_pipeline(text: str) -> tuple[str, int | None, str, int, str]:
-    """'ddim:3:quadratic+5' -> ('ddim', 3, 'quadratic', 5, 'float32'); '.../int8' -> (..., 'int8')."""
+class Pipeline(NamedTuple):
+    sampler: str
+    steps: int | None
+    spacing: str
+    refine: int  # DLS steps after sampling
+    restart: int  # DLS steps from random starts for the targets still unreached (0: none)
+    precision: str
+
+
+def parse_refinement(text: str) -> tuple[int, int]:
+    """'8' -> (8, 0); '8r20' -> (8, 20): DLS steps, then restart steps for the targets unreached."""
+    refine, _, restart = text.partition("r")
+    return int(refine), int(restart or 0)
+
+
+def parse_pipeline(text: str) -> Pipeline:
+    """'ddim:3:quadratic+5' -> Pipeline('ddim', 3, 'quadratic', 5, 0, 'float32'); '...+8r20/int8': 8, 20, 'int8'."""
     text, _, precision = text.partition("/")
-    sampler, _, refine = text.partition("+")
+    sampler, _, refinement = text.partition("+")
     head, _, spacing = sampler.rpartition(":")
     name, steps = parse_sampler(head)
-    return name, steps, spacing, int(refine), precision or "float32"
+    return Pipeline(name, steps, spacing, *parse_refinement(refinement), precision or "float32")
 
 
 def measure(checkpoint: str, config: PipelineConfig) -> dict:
@@ -69,28 +87,29 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
     targets = arm.end_effector(arm.random_poses(config.targets, generator=torch.Generator().manual_seed(config.seed)))
     runs = {}
     for text in config.pipelines:
-        name, steps, spacing, refine, precision = parse_pipeline(text)
-        if precision not in solvers:
-            solvers[precision] = ikdp.load(checkpoint, precision=precision)
-        runs[f"IKDP {text}"] = (
-            lambda name=name, steps=steps, spacing=spacing, refine=refine, solver=solvers[precision]: (
-                solver.solve(
-                    targets,
-                    num_samples=config.samples,
-                    sampler=name,
-                    steps=steps,
-                    spacing=spacing,
-                    refine_steps=refine,
-                    generator=torch.Generator().manual_seed(2),
-                ).angles
-            )
+        pipeline = parse_pipeline(text)
+        if pipeline.precision not in solvers:
+            solvers[pipeline.precision] = ikdp.load(checkpoint, precision=pipeline.precision)
+        runs[f"IKDP {text}"] = lambda pipeline=pipeline, solver=solvers[pipeline.precision]: (
+            solver.solve(
+                targets,
+                num_samples=config.samples,
+                sampler=pipeline.sampler,
+                steps=pipeline.steps,
+                spacing=pipeline.spacing,
+                refine_steps=pipeline.refine,
+                restart_steps=pipeline.restart,
+                generator=torch.Generator().manual_seed(2),
+            ).angles
         )
     for text in config.pk_settings:
         retries, iterations = (int(part) for part in text.split("x"))
         runs[f"PseudoInverseIK {text}"] = pseudo_inverse(arm, targets, retries, iterations, config.seed)
     goals = targets[:, None].expand(-1, config.samples, -1)
-    for dls_steps in config.random_start_steps:
-        runs[f"random starts + {dls_steps} DLS"] = lambda steps=dls_steps: dls_from_random_starts(arm, goals, steps)
+    for text in config.random_start_steps:
+        dls_steps, restart = parse_refinement(text)
+        label = f"random starts + {dls_steps} DLS" + (f", restarts + {restart}" if restart else "")
+        runs[label] = lambda steps=dls_steps, restart=restart: dls_from_random_starts(arm, goals, steps, restart)
     seconds: dict[str, list[float]] = {label: [] for label in runs}
     answers = {}
     for label, run in runs.items():  # warm-up, and the answers judged

@@ -31,6 +31,7 @@ import tyro
 import ikdp
 from ikdp.evaluation.machine import machine_description
 from ikdp.refine import damped_least_squares
+from ikdp.restarts import restart_unreached
 
 RESULTS = Path(__file__).resolve().parent / "results"
 PUBLISHED = {  # mean position / rotation error of learned Panda IK, as published
@@ -97,12 +98,14 @@ def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
     }
 
 
-def dls_from_random_starts(arm, goals: torch.Tensor, dls_steps: int) -> torch.Tensor:
+def dls_from_random_starts(arm, goals: torch.Tensor, dls_steps: int, restart_steps: int = 0) -> torch.Tensor:
     """goals (B, K, target_dim) -> (B, K, J): `dls_steps` damped least-squares steps from uniform random starts within
     the limits (the same starts every call), our own numerical baseline; the starts are drawn inside a timing of it,
-    as IKDP's noise is."""
-    starts = arm.random_poses(goals.shape[0] * goals.shape[1], generator=torch.Generator().manual_seed(3))
-    return damped_least_squares(arm, starts.unflatten(0, goals.shape[:2]), goals, steps=dls_steps)
+    as IKDP's noise is. `restart_steps`: the targets still unreached restart as solve's `restart_steps` do."""
+    generator = torch.Generator().manual_seed(3)
+    starts = arm.random_poses(goals.shape[0] * goals.shape[1], generator=generator)
+    joints = damped_least_squares(arm, starts.unflatten(0, goals.shape[:2]), goals, steps=dls_steps)
+    return restart_unreached(arm, joints, goals, restart_steps, generator)[0]
 
 
 def pseudo_inverse(arm, targets: torch.Tensor, retries: int, iterations: int, seed: int):

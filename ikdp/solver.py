@@ -20,6 +20,7 @@ from ikdp.guidance import ConstraintSet
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
+from ikdp.restarts import restart_unreached
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp.sampling import StepCallback
 from ikdp.schedule import TIMESTEP_SPACINGS
@@ -47,6 +48,7 @@ class SolveResult:
     rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets (free axis: the axis's miss)
     constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
     network_evaluations: int = 0  # denoiser calls each sample went through, one after another (the refinement: none)
+    restarted: torch.Tensor | None = None  # (B,) True where `restart_steps` replaced the poses from random starts
 
     @property
     def constraints_met(self) -> torch.Tensor | None:
@@ -113,6 +115,7 @@ class Solver:
         steps: int | None = None,
         spacing: str | None = None,
         refine_steps: int = 0,
+        restart_steps: int = 0,
         generator: torch.Generator | None = None,
         return_trajectory: bool = False,
         return_estimates: bool = False,
@@ -139,11 +142,18 @@ class Solver:
         `constraints` (ikdp.constraint_names(): locked joints, a pose to stay near, obstacles,
         partial targets) bend the reverse process toward them and are kept by the refinement;
         `constraint_violation` then says where they hold (docs/CONSTRAINTS.md).
+        `restart_steps`: a numerical fallback. The targets none of whose K refined poses is within the arm's
+        tolerances (1 mm and 1 degree on a robot) get K fresh uniform starts within the limits, refined that
+        many DLS steps (ikdp/restarts.py); `restarted` (B,) says which. Not with constraints.
         """
         arm = self.arm
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
         spacing = self.default_spacing(sampler, steps) if spacing is None else spacing
         self.check_options(len(targets), num_samples, sampler, steps, spacing, refine_steps, generator, initial_noise)
+        if not is_integer(restart_steps) or restart_steps < 0:
+            raise ValueError(f"restart_steps: expected a non-negative integer, got {restart_steps!r}")
+        if restart_steps and constraints:
+            raise ValueError("restart_steps: random restarts do not keep constraints; pass restart_steps=0 with them")
         self.check_memory(len(targets) * num_samples, sampler, steps, return_trajectory, return_estimates)
         reachable = arm.is_reachable(targets)
         conditions = arm.clamp_to_workspace(targets)
@@ -187,6 +197,11 @@ class Solver:
             task = None if bound is None else bound.refine_task()
             angles = damped_least_squares(arm, raw, goals, steps=refine_steps, task=task)
             error = arm.tip_error(angles, per_sample_targets)
+        restarted = None
+        if restart_steps and not result.stopped:
+            goals = conditions[:, None].expand(-1, num_samples, -1)  # the nearest reachable point, as refinement
+            angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator)
+            error = arm.tip_error(angles, per_sample_targets)
         rotation_error = None
         if bound is not None and bound.partial is not None:
             rotation_error = bound.partial.rotation_error(angles, per_sample_targets)
@@ -209,6 +224,7 @@ class Solver:
             rotation_error=rotation_error,
             constraint_violation=None if bound is None else bound.violation(angles),
             network_evaluations=result.network_evaluations,
+            restarted=restarted,
         )
 
     def check_options(

@@ -76,8 +76,9 @@ def test_the_seeded_fidelity_rows_are_read_or_refused_in_one_line():
 def test_a_pipeline_row_names_its_sampler_refinement_and_precision():
     from benchmarks.few_step_pipeline import parse_pipeline
 
-    assert parse_pipeline("ddim:3:quadratic+5") == ("ddim", 3, "quadratic", 5, "float32")
-    assert parse_pipeline("dpmpp2m:3:uniform+10/int8") == ("dpmpp2m", 3, "uniform", 10, "int8")
+    assert parse_pipeline("ddim:3:quadratic+5") == ("ddim", 3, "quadratic", 5, 0, "float32")
+    assert parse_pipeline("dpmpp2m:3:uniform+10/int8") == ("dpmpp2m", 3, "uniform", 10, 0, "int8")
+    assert parse_pipeline("ddim:1:quadratic+8r20/int8") == ("ddim", 1, "quadratic", 8, 20, "int8")
 
 
 def test_the_moonshot_line_names_only_rows_faster_than_random_starts_with_twice_their_valid_solutions():

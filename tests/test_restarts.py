@@ -1,0 +1,60 @@
+"""Random restarts (solve's restart_steps): a numerical fallback for the targets a solve left unreached."""
+
+import math
+
+import pytest
+import torch
+
+import ikdp
+from ikdp.arm import PlanarArm
+from ikdp.restarts import restart_unreached, within_tolerances
+
+
+def targets_of(arm, count, seed):
+    return arm.end_effector(arm.random_poses(count, generator=torch.Generator().manual_seed(seed)))
+
+
+def test_restarts_reach_the_targets_a_weak_model_missed_and_leave_the_reached_ones_alone(tiny_chain_checkpoint):
+    solver = ikdp.load(tiny_chain_checkpoint)  # five training steps: its poses miss
+    targets = targets_of(solver.arm, 40, seed=0)
+    options = {"num_samples": 4, "sampler": "ddim", "steps": 2, "refine_steps": 3}
+    plain = solver.solve(targets, **options, generator=torch.Generator().manual_seed(1))
+    restarted = solver.solve(targets, **options, restart_steps=25, generator=torch.Generator().manual_seed(1))
+    goals = targets[:, None].expand(-1, 4, -1)
+    reached_before = within_tolerances(solver.arm, plain.angles, goals).any(1)
+    reached_after = within_tolerances(solver.arm, restarted.angles, goals).any(1)
+    assert plain.restarted is None
+    assert torch.equal(restarted.restarted, ~reached_before)  # exactly the unreached targets restart
+    assert restarted.restarted.sum() >= 10  # the weak model leaves many (the test means something)
+    assert reached_after.float().mean() >= reached_before.float().mean() + 0.5  # measured 0.05 -> 0.85
+    assert torch.equal(restarted.angles[reached_before], plain.angles[reached_before])
+    assert torch.equal(restarted.raw_angles, plain.raw_angles)  # the sampler's poses are reported as they were
+    # the reported errors are those of the poses returned
+    assert torch.allclose(restarted.tip_error, solver.arm.tip_error(restarted.angles, goals))
+    assert restarted.rotation_error.max() <= math.pi + 1e-4
+    assert solver.arm.limit_violations(restarted.angles).sum() == 0
+
+
+def test_a_near_miss_is_never_traded_for_a_worse_start():
+    arm = PlanarArm([1.0] * 3)
+    poses = arm.random_poses(6, generator=torch.Generator().manual_seed(0)).reshape(2, 3, 3)
+    goals = arm.end_effector(poses) + torch.tensor([0.01, 0.0])  # each pose misses by 0.01 (tolerance 0.003)
+    refined, restarted = restart_unreached(arm, poses, goals, steps=0)
+    assert not restarted.any() and torch.equal(refined, poses)  # no steps: nothing happens
+    refined, restarted = restart_unreached(arm, poses, goals, steps=1, generator=torch.Generator().manual_seed(1))
+    assert restarted.all()
+    before = arm.task_error(poses, goals).norm(dim=-1)
+    after = arm.task_error(refined, goals).norm(dim=-1)
+    reached = within_tolerances(arm, refined, goals)
+    assert bool(((after <= before + 1e-6) | reached).all())
+
+
+def test_restarts_with_constraints_are_refused_in_one_line_before_any_work(tiny_chain_checkpoint, monkeypatch):
+    solver = ikdp.load(tiny_chain_checkpoint)
+    monkeypatch.setattr(solver.model, "sample", lambda *args, **kwargs: pytest.fail("sampling started"))
+    locked = ikdp.LockedJoints({"panda_joint1": 0.3})
+    with pytest.raises(ValueError, match="restart_steps: random restarts do not keep constraints") as error:
+        solver.solve(targets_of(solver.arm, 2, seed=0), restart_steps=5, constraints=[locked])
+    assert "\n" not in str(error.value)
+    with pytest.raises(ValueError, match="restart_steps: expected a non-negative integer, got -1"):
+        solver.solve(targets_of(solver.arm, 2, seed=0), restart_steps=-1)
