@@ -27,7 +27,7 @@ import torch
 import tyro
 
 import ikdp
-from benchmarks.robot_benchmark import dls_from_random_starts, parse_sampler, pseudo_inverse, verdict, write
+from benchmarks.robot_benchmark import dls_from_random_starts, pseudo_inverse, verdict, write
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
@@ -67,18 +67,23 @@ class Pipeline(NamedTuple):
 
 
 def parse_refinement(text: str) -> tuple[int, int]:
-    """'8' -> (8, 0); '8r20' -> (8, 20): DLS steps, then restart steps for the targets unreached."""
-    refine, _, restart = text.partition("r")
+    """'8' -> (8, 0); '8r20' -> (8, 20): DLS steps, then restart steps for the targets unreached; ValueError else."""
+    refine, marker, restart = text.partition("r")
+    if not refine.isdigit() or (marker and not restart.isdigit()):
+        raise ValueError(f"refinement {text!r}: expected DLS steps, then optionally r and restart steps (8, 8r20)")
     return int(refine), int(restart or 0)
 
 
 def parse_pipeline(text: str) -> Pipeline:
-    """'ddim:3:quadratic+5' -> Pipeline('ddim', 3, 'quadratic', 5, 0, 'float32'); '...+8r20/int8': 8, 20, 'int8'."""
-    text, _, precision = text.partition("/")
-    sampler, _, refinement = text.partition("+")
+    """'ddim:3:quadratic+5' -> Pipeline('ddim', 3, 'quadratic', 5, 0, 'float32'); '...+8r20/int8': 8, 20, 'int8'.
+    ValueError naming the row when it is not name:steps:spacing+refine[rRESTART][/precision]."""
+    body, _, precision = text.partition("/")
+    sampler, plus, refinement = body.partition("+")
     head, _, spacing = sampler.rpartition(":")
-    name, steps = parse_sampler(head)
-    return Pipeline(name, steps, spacing, *parse_refinement(refinement), precision or "float32")
+    name, _, steps = head.partition(":")
+    if not plus or not name or not spacing or (steps and not steps.isdigit()):
+        raise ValueError(f"pipeline {text!r}: expected name:steps:spacing+refine[rRESTART][/int8]")
+    return Pipeline(name, int(steps) if steps else None, spacing, *parse_refinement(refinement), precision or "float32")
 
 
 def measure(checkpoint: str, config: PipelineConfig) -> dict:
@@ -188,4 +193,9 @@ def main(config: PipelineConfig) -> dict:
 
 
 if __name__ == "__main__":
-    main(tyro.cli(PipelineConfig, description=__doc__.splitlines()[0]))
+    config = tyro.cli(PipelineConfig, description=__doc__.splitlines()[0])
+    try:  # before any work: one line for a row it cannot read
+        [parse_pipeline(text) for text in config.pipelines] + [parse_refinement(t) for t in config.random_start_steps]
+    except ValueError as error:
+        raise SystemExit(f"few_step_pipeline: error: {error}") from None
+    main(config)

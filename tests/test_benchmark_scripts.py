@@ -79,6 +79,15 @@ def test_a_pipeline_row_names_its_sampler_refinement_and_precision():
     assert parse_pipeline("ddim:3:quadratic+5") == ("ddim", 3, "quadratic", 5, 0, "float32")
     assert parse_pipeline("dpmpp2m:3:uniform+10/int8") == ("dpmpp2m", 3, "uniform", 10, 0, "int8")
     assert parse_pipeline("ddim:1:quadratic+8r20/int8") == ("ddim", 1, "quadratic", 8, 20, "int8")
+    result = subprocess.run(
+        [sys.executable, "-m", "benchmarks.few_step_pipeline", "--random-start-steps", "10x20"],
+        cwd=REPO, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert "refinement '10x20': expected DLS steps, then optionally r and restart steps" in result.stderr
+    for bad in ("ddim:3:quadratic", "ddim:three:quadratic+5", "ddim:3:quadratic+5r"):
+        with pytest.raises(ValueError, match="expected"):
+            parse_pipeline(bad)
 
 
 def test_the_moonshot_line_names_only_rows_faster_than_random_starts_with_twice_their_valid_solutions():
