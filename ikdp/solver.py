@@ -48,7 +48,7 @@ class SolveResult:
     rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets (free axis: the axis's miss)
     constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
     network_evaluations: int = 0  # denoiser calls each sample went through, one after another (the refinement: none)
-    restarted: torch.Tensor | None = None  # (B,) True where `restart_steps` replaced the poses from random starts
+    restarted: torch.Tensor | None = None  # (B,) True where a target, unreached, restarted from random starts
 
     @property
     def constraints_met(self) -> torch.Tensor | None:
