@@ -63,7 +63,9 @@ def test_restarts_with_constraints_are_refused_in_one_line_before_any_work(tiny_
 def test_a_planar_solve_restarts_its_unreached_targets_too(tiny_checkpoint):
     solver = ikdp.load(tiny_checkpoint)  # 3 links, thirty training steps: its raw poses miss
     targets = targets_of(solver.arm, 30, seed=2)
-    out = solver.solve(targets, num_samples=4, sampler="ddim", steps=2, restart_steps=20)
+    out = solver.solve(
+        targets, num_samples=4, sampler="ddim", steps=2, restart_steps=20, generator=torch.Generator().manual_seed(3)
+    )
     goals = targets[:, None].expand(-1, 4, -1)
     assert out.restarted.sum() >= 20 and out.rotation_error is None  # measured: all 30, then every one reached
     assert within_tolerances(solver.arm, out.angles, goals).any(1).float().mean() >= 0.9
