@@ -60,17 +60,27 @@ def test_the_obstacle_benchmark_blocks_each_valid_solution_and_certifies_another
     assert bool((ConstraintSet(arm, [grown], 6, 1).violation(witnesses[:, None]) == 0).all())  # and is 1 cm clear
 
 
+def refusal(module: str, *arguments: str) -> str:
+    """The stderr of `python -m benchmarks.<module> <arguments>`, after checking that it refused (exit 1) without a
+    traceback."""
+    result = subprocess.run(
+        [sys.executable, "-m", f"benchmarks.{module}", *arguments],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    return result.stderr
+
+
 def test_the_seeded_fidelity_rows_are_read_or_refused_in_one_line():
     from benchmarks.fidelity_seeds import parse_row
 
     assert parse_row("ikdp_n4_relaxed_mlp@ddpm") == ("ikdp_n4_relaxed_mlp", "ddpm", None, None)
     assert parse_row("student.pt@ddim:4:quadratic") == ("student.pt", "ddim", 4, "quadratic")
-    result = subprocess.run(
-        [sys.executable, "-m", "benchmarks.fidelity_seeds", "--rows", "m@ddim:four"],
-        cwd=REPO, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert result.returncode == 1 and "Traceback" not in result.stderr
-    assert "row 'm@ddim:four': expected checkpoint@sampler[:steps[:spacing]]" in result.stderr
+    stderr = refusal("fidelity_seeds", "--rows", "m@ddim:four")
+    assert "row 'm@ddim:four': expected checkpoint@sampler[:steps[:spacing]]" in stderr
 
 
 def test_a_pipeline_row_names_its_sampler_refinement_and_precision():
@@ -79,12 +89,8 @@ def test_a_pipeline_row_names_its_sampler_refinement_and_precision():
     assert parse_pipeline("ddim:3:quadratic+5") == ("ddim", 3, "quadratic", 5, 0, "float32")
     assert parse_pipeline("dpmpp2m:3:uniform+10/int8") == ("dpmpp2m", 3, "uniform", 10, 0, "int8")
     assert parse_pipeline("ddim:1:quadratic+8r20/int8") == ("ddim", 1, "quadratic", 8, 20, "int8")
-    result = subprocess.run(
-        [sys.executable, "-m", "benchmarks.few_step_pipeline", "--random-start-steps", "10x20"],
-        cwd=REPO, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert result.returncode == 1 and "Traceback" not in result.stderr
-    assert "refinement '10x20': expected DLS steps, then optionally r and restart steps" in result.stderr
+    stderr = refusal("few_step_pipeline", "--random-start-steps", "10x20")
+    assert "refinement '10x20': expected DLS steps, then optionally r and restart steps" in stderr
     for bad in ("ddim:3:quadratic", "ddim:three:quadratic+5", "ddim:3:quadratic+5r"):
         with pytest.raises(ValueError, match="expected"):
             parse_pipeline(bad)
