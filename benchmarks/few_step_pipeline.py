@@ -27,7 +27,7 @@ import torch
 import tyro
 
 import ikdp
-from benchmarks.robot_benchmark import dls_from_random_starts, pseudo_inverse, verdict, write
+from benchmarks.robot_benchmark import dls_from_random_starts, parse_sampler, pseudo_inverse, verdict, write
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step_pipeline.json"
@@ -80,10 +80,13 @@ def parse_pipeline(text: str) -> Pipeline:
     body, _, precision = text.partition("/")
     sampler, plus, refinement = body.partition("+")
     head, _, spacing = sampler.rpartition(":")
-    name, _, steps = head.partition(":")
-    if not plus or not name or not spacing or (steps and not steps.isdigit()):
+    try:
+        name, steps = parse_sampler(head)
+    except ValueError:
+        name = ""  # steps that are not a number
+    if not plus or not name or not spacing:
         raise ValueError(f"pipeline {text!r}: expected name:steps:spacing+refine[rRESTART][/int8]")
-    return Pipeline(name, int(steps) if steps else None, spacing, *parse_refinement(refinement), precision or "float32")
+    return Pipeline(name, steps, spacing, *parse_refinement(refinement), precision or "float32")
 
 
 def measure(checkpoint: str, config: PipelineConfig) -> dict:
