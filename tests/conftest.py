@@ -72,13 +72,13 @@ def tiny_chain_student(tiny_chain_checkpoint, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser():
-    """Debian's chromium driven by Playwright, one per test module (skipped without it, failed in CI)."""
-    from viz_helpers import CHROMIUM_ARGS, chromium_or_skip
+    """Debian's chromium through Playwright, one per test module, seen to draw WebGL (skipped without, failed in CI)."""
+    from viz_helpers import CHROMIUM_ARGS, RenderingBrowser, chromium_or_skip
 
     executable = chromium_or_skip()
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        browser = RenderingBrowser(playwright, executable, CHROMIUM_ARGS)
         yield browser
         browser.close()

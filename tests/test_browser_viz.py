@@ -92,13 +92,12 @@ def viewer(browser, tiny_checkpoint):
         target_pixel = project(app, canvas_box(page), np.array(TARGET))
         viewer.before = viewer.wait_for_picture(lambda image: red_near(image, target_pixel))  # the static scene is up
         if not red_near(viewer.before, target_pixel):
-            # Two CI runs of 2026-11-25 (the session's first page) kept a white canvas for the whole wait, never seen
-            # when the module ran alone; one reload, then the same check (see the closing note of that session)
-            page.reload()
-            page.add_style_tag(content=NO_FADE_CSS)
-            page.get_by_text("Connected", exact=True).wait_for(timeout=BROWSER_TIMEOUT * 1000)
+            # CI's first browser page stayed white three times, through a reload (RenderingBrowser): a new browser
+            page.close()
+            browser.relaunch()
+            page = viewer.page = open_page(browser, app, console)
             viewer.before = viewer.wait_for_picture(lambda image: red_near(image, target_pixel))
-        assert red_near(viewer.before, target_pixel), "the target's red cross never appeared"
+        assert red_near(viewer.before, target_pixel), f"the target's red cross never appeared; console: {console}"
         yield viewer
         page.close()
 

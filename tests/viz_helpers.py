@@ -181,3 +181,62 @@ def open_page_collecting_errors(browser, app, *, height: int = 900) -> tuple[obj
     page.goto(f"http://127.0.0.1:{app.server.get_port()}")
     page.get_by_text("Connected", exact=True).wait_for(timeout=BROWSER_TIMEOUT * 1000)
     return page, errors
+
+
+# A WebGL canvas cleared to red: a browser that shows no red here cannot draw the viewer at all
+RED_CANVAS = (
+    "<canvas id='c' width='64' height='64'></canvas><script>"
+    "const gl = document.getElementById('c').getContext('webgl');"
+    "if (gl) { gl.clearColor(1, 0, 0, 1); gl.clear(gl.COLOR_BUFFER_BIT); }</script>"
+)
+
+
+class RenderingBrowser:
+    """A chromium launched through Playwright and seen to draw WebGL; relaunched when it does not.
+
+    Three CI runs (2026-11-25 twice, 2026-11-26) kept the first browser module's page white (panel and canvas,
+    the whole page) for a minute, through a reload; every later module, each with a browser of its own, drew at
+    once, and the module alone never failed. So the remedy is a new browser, tried before any test uses it.
+    """
+
+    def __init__(self, playwright, executable: str, args: list[str], attempts: int = 3):
+        self.playwright, self.executable, self.args = playwright, executable, args
+        self.browser = None
+        self.relaunch(attempts)
+
+    def relaunch(self, attempts: int = 3) -> None:
+        for attempt in range(1, attempts + 1):
+            self.close()
+            self.browser = self.playwright.chromium.launch(executable_path=self.executable, args=self.args)
+            console = self.draws_red()
+            if console is None:
+                return
+            print(f"chromium drew no WebGL (launch {attempt} of {attempts}); its console: {console}")
+        pytest.fail(f"chromium drew no WebGL canvas in {attempts} launches")
+
+    def draws_red(self, timeout: float = 20.0) -> list[str] | None:
+        """None once a WebGL canvas shows red; else what the page's console said."""
+        import time
+
+        console: list[str] = []
+        page = self.browser.new_page(viewport={"width": 200, "height": 200})
+        try:
+            page.on("console", lambda message: console.append(message.text))
+            page.set_content(RED_CANVAS)
+            deadline = time.monotonic() + timeout
+            while time.monotonic() < deadline:
+                image = read_png(page.screenshot())
+                if ((image[..., 0] > 200) & (image[..., 1] < 50) & (image[..., 2] < 50)).sum() > 1000:
+                    return None
+                time.sleep(0.2)
+            return console
+        finally:
+            page.close()
+
+    def new_page(self, **options):
+        return self.browser.new_page(**options)
+
+    def close(self) -> None:
+        if self.browser is not None:
+            self.browser.close()
+            self.browser = None
