@@ -98,26 +98,26 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         pipeline = parse_pipeline(text)
         if pipeline.precision not in solvers:
             solvers[pipeline.precision] = ikdp.load(checkpoint, precision=pipeline.precision)
-        runs[f"IKDP {text}"] = lambda pipeline=pipeline, solver=solvers[pipeline.precision]: (
-            solver.solve(
-                targets,
-                num_samples=config.samples,
-                sampler=pipeline.sampler,
-                steps=pipeline.steps,
-                spacing=pipeline.spacing,
-                refine_steps=pipeline.refine,
-                restart_steps=pipeline.restart,
-                generator=torch.Generator().manual_seed(2),
-            ).angles
+        runs[f"IKDP {text}"] = lambda pipeline=pipeline, solver=solvers[pipeline.precision]: solver.solve(
+            targets,
+            num_samples=config.samples,
+            sampler=pipeline.sampler,
+            steps=pipeline.steps,
+            spacing=pipeline.spacing,
+            refine_steps=pipeline.refine,
+            restart_steps=pipeline.restart,
+            generator=torch.Generator().manual_seed(2),
         )
     for text in config.pk_settings:
         retries, iterations = (int(part) for part in text.split("x"))
-        runs[f"PseudoInverseIK {text}"] = pseudo_inverse(arm, targets, retries, iterations, config.seed)
+        runs[f"PseudoInverseIK {text}"] = pseudo_inverse(arm, targets, retries, iterations, config.seed)  # angles
     goals = targets[:, None].expand(-1, config.samples, -1)
     for text in config.random_start_steps:
         dls_steps, restart = parse_refinement(text)
         label = f"random starts + {dls_steps} DLS" + (f", restarts + {restart}" if restart else "")
-        runs[label] = lambda steps=dls_steps, restart=restart: dls_from_random_starts(arm, goals, steps, restart)
+        runs[label] = lambda steps=dls_steps, restart=restart: dls_from_random_starts(
+            arm, goals, steps, restart, with_restarted=True
+        )
     seconds: dict[str, list[float]] = {label: [] for label in runs}
     answers = {}
     for label, run in runs.items():  # warm-up, and the answers judged
@@ -132,7 +132,8 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         rows[label] = {
             "ms_per_target": 1000 * statistics.median(seconds[label]) / len(targets),
             "repeats_ms_per_target": [1000 * s / len(targets) for s in seconds[label]],
-            **verdict(arm, answers[label], targets),
+            **verdict(arm, answer_angles(answers[label]), targets),
+            "restarted_share": restarted_share(answers[label]),
         }
 
     def fastest(prefix: str):
@@ -151,6 +152,21 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         "fastest_random_starts": random,
         "moonshot": moonshot(rows, random, config.success),
     }
+
+
+def answer_angles(answer) -> torch.Tensor:
+    """A row's answer: a SolveResult, (angles, restarted) from random starts, or PseudoInverseIK's angles."""
+    if isinstance(answer, ikdp.SolveResult):
+        return answer.angles
+    return answer[0] if isinstance(answer, tuple) else answer
+
+
+def restarted_share(answer) -> float | None:
+    """The share of targets that took random restarts (None where the row has no such fallback)."""
+    restarted = (
+        answer.restarted if isinstance(answer, ikdp.SolveResult) else (answer[1] if isinstance(answer, tuple) else None)
+    )
+    return None if restarted is None else float(restarted.double().mean())
 
 
 def moonshot(rows: dict, random: str | None, success: float) -> dict | None:
@@ -178,12 +194,13 @@ def main(config: PipelineConfig) -> dict:
         models[checkpoint] = measure(checkpoint, config)
         model = models[checkpoint]
         print(f"\n{checkpoint}: K = {config.samples} + refinement, {config.targets} targets, within 1 mm and 1 deg")
-        print("| pipeline | solved | valid of 16 | diversity (rad) | ms per target (median of rounds) |")
-        print("|---|---|---|---|---|")
+        print("| pipeline | solved | valid of 16 | diversity (rad) | restarted | ms per target (median of rounds) |")
+        print("|---|---|---|---|---|---|")
         for label, row in model["rows"].items():
+            restarted = "" if row["restarted_share"] is None else f"{100 * row['restarted_share']:.1f} %"
             print(
                 f"| {label} | {100 * row['success_share']:.1f} % | {row['valid_per_target']:.1f} "
-                f"| {row['diversity_rad']:.2f} | {row['ms_per_target']:.3f} |"
+                f"| {row['diversity_rad']:.2f} | {restarted} | {row['ms_per_target']:.3f} |"
             )
         ratio = f"{model['ratio']:.2f}" if model["ratio"] is not None else "n/a"
         print(f"fastest at >= {100 * config.success:.1f} %: {model['fastest_ikdp']} / {model['fastest_pk']} = {ratio}")

@@ -98,14 +98,16 @@ def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
     }
 
 
-def dls_from_random_starts(arm, goals: torch.Tensor, dls_steps: int, restart_steps: int = 0) -> torch.Tensor:
+def dls_from_random_starts(arm, goals: torch.Tensor, dls_steps: int, restart_steps: int = 0, with_restarted=False):
     """goals (B, K, target_dim) -> (B, K, J): `dls_steps` damped least-squares steps from uniform random starts within
     the limits (the same starts every call), our own numerical baseline; the starts are drawn inside a timing of it,
-    as IKDP's noise is. `restart_steps`: the targets still unreached restart as solve's `restart_steps` do."""
+    as IKDP's noise is. `restart_steps`: the targets still unreached restart as solve's `restart_steps` do;
+    `with_restarted`: return (joints, restarted (B,), None without restarts) to say which."""
     generator = torch.Generator().manual_seed(3)
     starts = arm.random_poses(goals.shape[0] * goals.shape[1], generator=generator)
     joints = damped_least_squares(arm, starts.unflatten(0, goals.shape[:2]), goals, steps=dls_steps)
-    return restart_unreached(arm, joints, goals, restart_steps, generator)[0]
+    joints, restarted = restart_unreached(arm, joints, goals, restart_steps, generator)
+    return (joints, restarted if restart_steps else None) if with_restarted else joints
 
 
 def pseudo_inverse(arm, targets: torch.Tensor, retries: int, iterations: int, seed: int):
