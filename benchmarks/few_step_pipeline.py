@@ -66,6 +66,20 @@ class Pipeline(NamedTuple):
     precision: str
 
 
+class Answer(NamedTuple):
+    """What a row's run returns: its poses (B, K, J), and which targets took random restarts (None: no fallback)."""
+
+    angles: torch.Tensor
+    restarted: torch.Tensor | None
+
+    @classmethod
+    def of_solve(cls, result: ikdp.SolveResult) -> Answer:
+        return cls(result.angles, result.restarted)
+
+    def restarted_share(self) -> float | None:
+        return None if self.restarted is None else float(self.restarted.double().mean())
+
+
 def parse_refinement(text: str) -> tuple[int, int]:
     """'8' -> (8, 0); '8r20' -> (8, 20): DLS steps, then restart steps for the targets unreached; ValueError else."""
     refine, marker, restart = text.partition("r")
@@ -98,25 +112,28 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         pipeline = parse_pipeline(text)
         if pipeline.precision not in solvers:
             solvers[pipeline.precision] = ikdp.load(checkpoint, precision=pipeline.precision)
-        runs[f"IKDP {text}"] = lambda pipeline=pipeline, solver=solvers[pipeline.precision]: solver.solve(
-            targets,
-            num_samples=config.samples,
-            sampler=pipeline.sampler,
-            steps=pipeline.steps,
-            spacing=pipeline.spacing,
-            refine_steps=pipeline.refine,
-            restart_steps=pipeline.restart,
-            generator=torch.Generator().manual_seed(2),
+        runs[f"IKDP {text}"] = lambda pipeline=pipeline, solver=solvers[pipeline.precision]: Answer.of_solve(
+            solver.solve(
+                targets,
+                num_samples=config.samples,
+                sampler=pipeline.sampler,
+                steps=pipeline.steps,
+                spacing=pipeline.spacing,
+                refine_steps=pipeline.refine,
+                restart_steps=pipeline.restart,
+                generator=torch.Generator().manual_seed(2),
+            )
         )
     for text in config.pk_settings:
         retries, iterations = (int(part) for part in text.split("x"))
-        runs[f"PseudoInverseIK {text}"] = pseudo_inverse(arm, targets, retries, iterations, config.seed)  # angles
+        solve = pseudo_inverse(arm, targets, retries, iterations, config.seed)
+        runs[f"PseudoInverseIK {text}"] = lambda solve=solve: Answer(solve(), None)
     goals = targets[:, None].expand(-1, config.samples, -1)
     for text in config.random_start_steps:
         dls_steps, restart = parse_refinement(text)
         label = f"random starts + {dls_steps} DLS" + (f", restarts + {restart}" if restart else "")
-        runs[label] = lambda steps=dls_steps, restart=restart: dls_from_random_starts(
-            arm, goals, steps, restart, with_restarted=True
+        runs[label] = lambda steps=dls_steps, restart=restart: Answer(
+            *dls_from_random_starts(arm, goals, steps, restart, with_restarted=True)
         )
     seconds: dict[str, list[float]] = {label: [] for label in runs}
     answers = {}
@@ -132,8 +149,8 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         rows[label] = {
             "ms_per_target": 1000 * statistics.median(seconds[label]) / len(targets),
             "repeats_ms_per_target": [1000 * s / len(targets) for s in seconds[label]],
-            **verdict(arm, answer_angles(answers[label]), targets),
-            "restarted_share": restarted_share(answers[label]),
+            **verdict(arm, answers[label].angles, targets),
+            "restarted_share": answers[label].restarted_share(),
         }
 
     def fastest(prefix: str):
@@ -152,21 +169,6 @@ def measure(checkpoint: str, config: PipelineConfig) -> dict:
         "fastest_random_starts": random,
         "moonshot": moonshot(rows, random, config.success),
     }
-
-
-def answer_angles(answer) -> torch.Tensor:
-    """A row's answer: a SolveResult, (angles, restarted) from random starts, or PseudoInverseIK's angles."""
-    if isinstance(answer, ikdp.SolveResult):
-        return answer.angles
-    return answer[0] if isinstance(answer, tuple) else answer
-
-
-def restarted_share(answer) -> float | None:
-    """The share of targets that took random restarts (None where the row has no such fallback)."""
-    restarted = (
-        answer.restarted if isinstance(answer, ikdp.SolveResult) else (answer[1] if isinstance(answer, tuple) else None)
-    )
-    return None if restarted is None else float(restarted.double().mean())
 
 
 def moonshot(rows: dict, random: str | None, success: float) -> dict | None:

@@ -119,17 +119,13 @@ def test_the_moonshot_line_names_only_rows_faster_than_random_starts_with_twice_
 
 def test_a_pipeline_row_records_the_share_of_targets_restarted_only_where_it_restarts(tiny_checkpoint):
     import ikdp
-    from benchmarks.few_step_pipeline import answer_angles, restarted_share
+    from benchmarks.few_step_pipeline import Answer
 
     solver = ikdp.load(tiny_checkpoint)
     targets = torch.tensor([[1.0, 0.5], [0.2, -1.1], [-0.8, 0.9]])
     solved = solver.solve(targets, num_samples=4, sampler="ddim", steps=2, refine_steps=1, restart_steps=3)
-    assert restarted_share(solved) == float(solved.restarted.double().mean()) and answer_angles(solved) is solved.angles
-    assert restarted_share(solver.solve(targets, num_samples=4, sampler="ddim", steps=2)) is None  # no restarts asked
-
-    angles = torch.zeros(4, 16, 7)
-    restarted = torch.tensor([True, False, False, False])
-    assert restarted_share((angles, restarted)) == 0.25  # random starts with restarts
-    assert restarted_share((angles, None)) is None  # random starts without
-    assert restarted_share(angles) is None  # PseudoInverseIK: no such fallback
-    assert answer_angles((angles, restarted)) is angles and answer_angles(angles) is angles
+    answer = Answer.of_solve(solved)
+    assert answer.restarted_share() == float(solved.restarted.double().mean()) and answer.angles is solved.angles
+    assert Answer.of_solve(solver.solve(targets, num_samples=4, sampler="ddim", steps=2)).restarted_share() is None
+    assert Answer(solved.angles, torch.tensor([True, False, False, False])).restarted_share() == 0.25
+    assert Answer(solved.angles, None).restarted_share() is None  # PseudoInverseIK, random starts without restarts
