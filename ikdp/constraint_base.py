@@ -87,3 +87,7 @@ class BoundConstraint:
     def violation(self, joints: torch.Tensor) -> torch.Tensor:
         """joints (M, J) -> (M,) >= 0, zero where the constraint holds."""
         return torch.zeros(joints.shape[:-1], dtype=joints.dtype, device=joints.device)
+
+    def of_rows(self, rows: torch.Tensor) -> BoundConstraint:
+        """The same constraint over the sampled rows `rows` (R,) only (random restarts refine a subset)."""
+        raise NotImplementedError(f"{type(self).__name__} cannot be cut to a subset of its rows")

@@ -16,6 +16,7 @@ are removed from both, so a step never moves them.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 
@@ -50,6 +51,16 @@ class ConstraintSet:
 
     def hold(self, joints: torch.Tensor) -> torch.Tensor:
         return joints if self.locked is None else self.locked.hold(joints)
+
+    def of_targets(self, chosen: torch.Tensor) -> ConstraintSet:
+        """The same constraints over the rows of the targets `chosen` (B,) bool only: what restarts refine."""
+        rows = chosen.cpu().repeat_interleave(self.num_samples).nonzero()[:, 0]
+        subset = copy.copy(self)
+        subset.batch = int(chosen.sum())
+        subset.locked = None if self.locked is None else self.locked.of_rows(rows)
+        subset.partial = None if self.partial is None else self.partial.of_rows(rows)
+        subset.others = [item.of_rows(rows) for item in self.others]
+        return subset
 
     def violation(self, joints: torch.Tensor) -> torch.Tensor:
         """(B, K, J) -> (B, K) the summed violation of every checkable constraint; 0 where all hold."""

@@ -8,7 +8,7 @@ near is guidance: each step's x̂0 is moved part of the way toward it.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import torch
@@ -75,6 +75,9 @@ class BoundLockedJoints(BoundConstraint):
         values = self.values.to(device=joints.device, dtype=joints.dtype).reshape(*joints.shape[:-1], -1)
         return ((joints - values).abs() * self.mask.to(joints.device)).sum(dim=-1)
 
+    def of_rows(self, rows: torch.Tensor) -> BoundLockedJoints:
+        return replace(self, values=self.values[rows])
+
 
 # --- near a pose ---------------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -111,3 +114,6 @@ class BoundNearPose(BoundConstraint):
     def guide(self, joints):
         reference = self.pose.to(device=joints.device, dtype=joints.dtype)
         return -self.weight * joint_difference(self.arm, joints, reference)
+
+    def of_rows(self, rows: torch.Tensor) -> BoundNearPose:
+        return replace(self, pose=self.pose[rows])

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import torch
@@ -162,3 +162,6 @@ class BoundObstacles(BoundConstraint):
 
     def violation(self, joints):
         return self.penetration(joints)
+
+    def of_rows(self, rows: torch.Tensor) -> BoundObstacles:
+        return replace(self, centers=self.centers[rows], radii=self.radii[rows])

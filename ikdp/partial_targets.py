@@ -140,6 +140,9 @@ class BoundPartialTarget(BoundConstraint):
         mixing = (reached * asked).sum(-1)[..., None, None] * eye - reached[..., :, None] * asked[..., None, :]
         return torch.cat([jacobian[..., :3, :], mixing @ jacobian[..., 3:, :]], dim=-2)
 
+    def of_rows(self, rows: torch.Tensor) -> BoundPartialTarget:
+        return self  # nothing per row: each row's full pose is in the solve's goals
+
     def _world_axis(self, targets: torch.Tensor) -> torch.Tensor:
         rotation = quaternion_to_matrix(targets[..., 3:7])
         return rotation @ self.axis.to(device=targets.device, dtype=targets.dtype)

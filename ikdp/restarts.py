@@ -13,17 +13,33 @@ import torch
 from ikdp.refine import better_of, damped_least_squares
 
 
-def within_tolerances(arm, joints: torch.Tensor, goals: torch.Tensor) -> torch.Tensor:
+def within_tolerances(arm, joints: torch.Tensor, goals: torch.Tensor, constraints=None) -> torch.Tensor:
     """joints (..., J), goals (..., target_dim) -> (...) True where the tip is within `arm.position_tolerance`
-    of the goal (and, for pose targets, its orientation within `arm.rotation_tolerance`)."""
+    of the goal (and, for pose targets, its orientation within `arm.rotation_tolerance`).
+
+    `constraints` (a ConstraintSet over the same B x K rows): a partial target's rotation error replaces the
+    full one (none for position only), and every constraint must hold (violation 0, as tracking checks).
+    """
     within = arm.tip_error(joints, goals) < arm.position_tolerance
-    if arm.target_dim == 7:
-        within &= arm.rotation_error(joints, goals) < arm.rotation_tolerance
+    partial = None if constraints is None else constraints.partial
+    if partial is not None:
+        rotation = partial.rotation_error(joints, goals)
+    else:
+        rotation = arm.rotation_error(joints, goals) if arm.target_dim == 7 else None
+    if rotation is not None:
+        within &= rotation.to(within.device) < arm.rotation_tolerance
+    if constraints is not None:
+        within &= constraints.violation(joints).to(within.device) == 0
     return within
 
 
 def restart_unreached(
-    arm, angles: torch.Tensor, goals: torch.Tensor, steps: int, generator: torch.Generator | None = None
+    arm,
+    angles: torch.Tensor,
+    goals: torch.Tensor,
+    steps: int,
+    generator: torch.Generator | None = None,
+    constraints=None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """angles (B, K, J), goals (B, K, target_dim) -> (angles, restarted (B,)).
 
@@ -31,17 +47,25 @@ def restart_unreached(
     (`arm.random_poses`), refined by `steps` damped-least-squares steps toward its goals. Each of its poses
     becomes the fresh one where that is within the tolerances, else the one of the two nearer the goal (the
     task error's norm, what the refinement minimises): a near miss is never traded for a worse start.
+
+    `constraints` (a ConstraintSet over the B x K rows): reaching also means meeting them; the fresh poses
+    start with the locked joints at their values and are refined by the constrained task (obstacles cleared,
+    a partial target's free rows left free), cut to the restarted targets' rows (`ConstraintSet.of_targets`).
     """
-    restarted = ~within_tolerances(arm, angles, goals).any(dim=-1)
+    restarted = ~within_tolerances(arm, angles, goals, constraints).any(dim=-1)
     if steps == 0 or not bool(restarted.any()):
         return angles, torch.zeros_like(restarted)
     if generator is not None and generator.device.type != "cpu":
         generator = None  # random_poses draws on the CPU
     rows, samples = int(restarted.sum()), angles.shape[1]
     starts = arm.random_poses(rows * samples, generator=generator).to(angles).unflatten(0, (rows, samples))
+    subset = None if constraints is None else constraints.of_targets(restarted)
+    task = None if subset is None else subset.refine_task()
+    if subset is not None:
+        starts = subset.hold(starts)
     row_goals = goals[restarted]
-    fresh = damped_least_squares(arm, starts, row_goals, steps=steps)
-    kept = better_of(arm, row_goals, angles[restarted], fresh)
+    fresh = damped_least_squares(arm, starts, row_goals, steps=steps, task=task)
+    kept = better_of(arm, row_goals, angles[restarted], fresh, task=task)
     angles = angles.clone()
-    angles[restarted] = torch.where(within_tolerances(arm, fresh, row_goals)[..., None], fresh, kept)
+    angles[restarted] = torch.where(within_tolerances(arm, fresh, row_goals, subset)[..., None], fresh, kept)
     return angles, restarted

@@ -144,7 +144,9 @@ class Solver:
         `constraint_violation` then says where they hold (docs/CONSTRAINTS.md).
         `restart_steps`: a numerical fallback. The targets none of whose K refined poses is within the arm's
         tolerances (1 mm and 1 degree on a robot) get K fresh uniform starts within the limits, refined that
-        many DLS steps (ikdp/restarts.py); `restarted` (B,) says which. Not with constraints.
+        many DLS steps (ikdp/restarts.py); `restarted` (B,) says which. With constraints, reaching also means
+        meeting them, and the fresh starts keep the locked joints and are refined by the constrained task (a pose
+        to stay near, a soft pull on the diffusion, does not steer them).
         """
         arm = self.arm
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
@@ -152,8 +154,6 @@ class Solver:
         self.check_options(len(targets), num_samples, sampler, steps, spacing, refine_steps, generator, initial_noise)
         if not is_integer(restart_steps) or restart_steps < 0:
             raise ValueError(f"restart_steps: expected a non-negative integer, got {restart_steps!r}")
-        if restart_steps and constraints:
-            raise ValueError("restart_steps: random restarts do not keep constraints; pass restart_steps=0 with them")
         self.check_memory(len(targets) * num_samples, sampler, steps, return_trajectory, return_estimates)
         reachable = arm.is_reachable(targets)
         conditions = arm.clamp_to_workspace(targets)
@@ -190,17 +190,16 @@ class Solver:
         per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
         raw_error = arm.tip_error(raw, per_sample_targets)
         angles, error = raw, raw_error
+        # refinement and restarts aim at the nearest reachable point: for a target beyond reach, the stretched arm
+        goals = sample_targets.reshape(batch, num_samples, -1) if per_target == 1 else conditions[:, None]
+        goals = goals.expand(-1, num_samples, -1)
         if refine_steps and not result.stopped:
-            # aim at the nearest reachable point: for a target beyond reach that is the stretched arm
-            goals = sample_targets.reshape(batch, num_samples, -1) if per_target == 1 else conditions[:, None]
-            goals = goals.expand(-1, num_samples, -1)
             task = None if bound is None else bound.refine_task()
             angles = damped_least_squares(arm, raw, goals, steps=refine_steps, task=task)
             error = arm.tip_error(angles, per_sample_targets)
         restarted = None
         if restart_steps and not result.stopped:
-            goals = conditions[:, None].expand(-1, num_samples, -1)  # the nearest reachable point, as refinement
-            angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator)
+            angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator, bound)
             error = arm.tip_error(angles, per_sample_targets)
         rotation_error = None
         if bound is not None and bound.partial is not None:
