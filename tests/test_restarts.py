@@ -118,3 +118,22 @@ def test_a_planar_solve_restarts_its_unreached_targets_too(tiny_checkpoint):
     assert out.restarted.sum() >= 20 and out.rotation_error is None  # measured: all 30, then every one reached
     assert within_tolerances(solver.arm, out.angles, goals).any(1).float().mean() >= 0.9
     assert torch.allclose(out.tip_error, solver.arm.tip_error(out.angles, goals))
+
+
+def test_a_constraint_set_cut_to_some_targets_keeps_those_targets_rows():
+    arm = PlanarArm([1.0] * 3)
+    batch, samples = 3, 2
+    poses = torch.tensor([[0.1, 0.2, 0.3], [0.4, 0.5, 0.6], [0.7, 0.8, 0.9]])  # one pose to stay near per target
+    centers = torch.tensor([[[1.0, 1.0]], [[2.0, 0.0]], [[0.0, 2.0]]])  # one disc per target
+    locks = {0: [0.5, -0.5, 1.0]}
+    constraints = [ikdp.NearPose(poses), ikdp.Obstacles(centers, radii=0.2), ikdp.LockedJoints(locks)]
+    bound = ConstraintSet(arm, constraints, batch, samples)
+    chosen = torch.tensor([False, True, True])
+    subset = bound.of_targets(chosen)
+    near, discs = subset.others
+    assert subset.batch == 2 and subset.num_samples == samples
+    assert torch.equal(near.pose, poses[1:].repeat_interleave(samples, dim=0))
+    assert torch.equal(discs.centers, centers[1:].repeat_interleave(samples, dim=0))
+    assert torch.equal(subset.locked.values[:, 0], torch.tensor([-0.5, -0.5, 1.0, 1.0]))
+    joints = torch.zeros(2, samples, 3)
+    assert torch.equal(subset.violation(joints), bound.violation(torch.zeros(batch, samples, 3))[chosen])
