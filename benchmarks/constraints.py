@@ -14,7 +14,9 @@ One run, one torch thread, every method on the same targets in the same run:
    unguided with the same filter), 16 uniform random starts with the same constrained refinement, and pytorch_kinematics
    PseudoInverseIK (16 retries, 30 iterations) with the same collision filter (the link spheres of
    ikdp/link_spheres.py). "Solved by any method" bounds how many targets the spheres leave open.
-2. Panda, joints 1 and 7 locked at the valid solution's values: share solved, locked joints moved.
+   One more IKDP row takes solve's `restart_steps` (`--restart-steps`, 0: no such row).
+2. Panda, joints 1 and 7 locked at the valid solution's values: share solved, locked joints moved
+   (with the same restarts row).
 3. Panda, tracking (benchmarks/constraint_tracking.py): circles of `track_radius` in a horizontal
    plane, `track_points` targets at a fixed orientation, each certified reachable all the way round
    by PseudoInverseIK from many random starts (plus one partly unreachable stress circle): largest
@@ -69,6 +71,7 @@ class ConstraintBenchmarkConfig:
     planar_sampler: str = "dpmpp2m:10"
     obstacle_extra_samplers: tuple[str, ...] = ("ddpm",)  # more guided IKDP rows in the obstacle part
     random_start_steps: tuple[int, ...] = (5, 10, 20)  # constrained DLS steps from 16 uniform random starts
+    restart_steps: int = 20  # parts 1 and 2: one more IKDP row with solve's restart_steps (0: no such row)
     certified_placement: bool = True  # obstacles: only sphere pairs that leave a certified free solution
     pk_retries: int = 16
     pk_iterations: int = 30
@@ -212,6 +215,16 @@ def obstacles_part(solver, config: ConstraintBenchmarkConfig) -> dict:
             )
         )
         record(label, seconds, out.angles)
+    if config.restart_steps:
+        label = f"IKDP {config.sampler}, K={config.samples}, guided + {config.refine_steps} constrained DLS steps"
+        label += f", restarts + {config.restart_steps}"
+        seconds, out = timed(
+            lambda: solver.solve(
+                targets, constraints=[obstacle], generator=torch.Generator().manual_seed(1), **options,
+                restart_steps=config.restart_steps,
+            )
+        )  # fmt: skip
+        record(label, seconds, out.angles)
     label = f"IKDP {config.sampler}, K={config.samples}, unguided + {config.refine_steps} DLS steps, filtered"
     seconds, out = timed(lambda: solver.solve(targets, generator=torch.Generator().manual_seed(1), **options))
     record(label, seconds, out.angles)
@@ -254,16 +267,19 @@ def locked_part(solver, config: ConstraintBenchmarkConfig) -> dict:
     def moved(joints: torch.Tensor) -> float:
         return float((joints[..., [0, 6]] - truth[:, None, [0, 6]]).abs().max())
 
-    for repaint in (True, False):
+    runs = [(True, 0), (False, 0)] + ([(True, config.restart_steps)] if config.restart_steps else [])
+    for repaint, restart_steps in runs:
         lock = ikdp.LockedJoints(values, repaint=repaint)
         seconds, out = timed(
-            lambda lock=lock: solver.solve(
-                targets, constraints=[lock], generator=torch.Generator().manual_seed(1), **options
+            lambda lock=lock, restart_steps=restart_steps: solver.solve(
+                targets, constraints=[lock], generator=torch.Generator().manual_seed(1), **options,
+                restart_steps=restart_steps,
             )
-        )
+        )  # fmt: skip
         label = f"IKDP {config.sampler}, K={config.samples}, " + (
             "inpainted (x̂0 and states, RePaint)" if repaint else "inpainted (x̂0 only)"
         )
+        label += f", restarts + {restart_steps}" if restart_steps else ""
         valid = within_pose_tolerance(arm, out.angles, targets)
         rows[label] = row(valid, seconds, locked_joints_moved_rad=moved(out.angles))
     check = ConstraintSet(arm, [ikdp.LockedJoints(values)], len(targets), config.samples)
