@@ -3,6 +3,8 @@
     python wheel_smoke.py core   # the wheel without extras: load the shipped model by name, solve one target
     python wheel_smoke.py viz    # with the [viz] extra: start the viewer on its default model, fetch its page
     python wheel_smoke.py robot  # with [viz,robots]: the viewer on the shipped Panda, its meshes drawn, a first solve
+    python wheel_smoke.py train  # with [train] alone: `ikdp-train` trains a small planar model and writes it
+    python wheel_smoke.py eval   # with [train,eval]: `ikdp-evaluate --quick` writes RESULTS.md, results.json, figures
 
 Each check prints one line; any failure exits non-zero with the reason.
 """
@@ -123,8 +125,50 @@ def robot(timeout: float = 120.0) -> None:
         server.stop()
 
 
+def train() -> None:
+    """`ikdp-train` with only [train] installed: a few steps of a 3-link model, its checkpoint loadable."""
+    installed_not_cloned()
+    import tempfile
+
+    import ikdp
+
+    folder = Path(tempfile.mkdtemp())
+    command = [
+        str(Path(sys.executable).parent / "ikdp-train"),
+        "--joints",
+        "3",
+        "--steps",
+        "5",
+        "--output",
+        str(folder / "small.pt"),
+    ]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=folder, timeout=600)
+    check(done.returncode == 0, f"ikdp-train --joints 3 --steps 5 exits 0 ({done.stderr.strip().splitlines()[-1:]})")
+    check(ikdp.load(folder / "small.pt").arm.num_joints == 3, "its checkpoint loads with 3 joints")
+
+
+def evaluate() -> None:
+    """`ikdp-evaluate --quick` with [train,eval] (and not [viz]): every stage runs and writes its report."""
+    installed_not_cloned()
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp())
+    command = [
+        str(Path(sys.executable).parent / "ikdp-evaluate"),
+        "--quick",
+        "--out-dir",
+        str(folder / "docs"),
+        "--cache-dir",
+        str(folder / "cache"),
+    ]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=folder, timeout=1200)
+    check(done.returncode == 0, f"ikdp-evaluate --quick exits 0 ({done.stderr.strip().splitlines()[-1:]})")
+    written = sorted(path.name for path in (folder / "docs").iterdir())
+    check({"RESULTS.md", "results.json", "figures"} <= set(written), f"it wrote {written}")
+
+
 if __name__ == "__main__":
-    checks = {"core": core, "viz": viz, "robot": robot}
+    checks = {"core": core, "viz": viz, "robot": robot, "train": train, "eval": evaluate}
     if len(sys.argv) != 2 or sys.argv[1] not in checks:
         raise SystemExit(f"usage: python {Path(__file__).name} {{{'|'.join(checks)}}}")
     checks[sys.argv[1]]()
