@@ -18,6 +18,7 @@ stages that time nothing, run in that many single-threaded processes (ikdp.evalu
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import shlex
 import sys
@@ -31,7 +32,7 @@ import torch
 import tyro
 
 import ikdp
-from ikdp.evaluation import figures, stages, tables
+from ikdp.evaluation import stages, tables
 from ikdp.evaluation.cache import config_digest
 from ikdp.evaluation.machine import machine_description
 from ikdp.evaluation.mmd import KERNEL_DESCRIPTION
@@ -114,6 +115,8 @@ class Stage:
 
 def draw_figures(run: Run) -> FigureFiles:
     """The figures, from the accuracy results and the figure data."""
+    from ikdp.evaluation import figures  # matplotlib: only this stage needs it (checked before any work)
+
     data = {**run.results["accuracy"].to_json(), **run.results["figure_data"].to_json()}
     return FigureFiles(figures=figures.draw_all(data, run.out_dir / "figures"))
 
@@ -221,11 +224,21 @@ def measure_in_parallel(run: Run) -> None:
         run_stage(run, name, fresh=False)
 
 
+def check_packages(config: EvaluateConfig) -> None:
+    """ValueError naming the extra to install, before any work: the stages that compute may train variants
+    (TensorBoard logs), the figures need matplotlib."""
+    needed = {"matplotlib": config.only in (None, "figures"), "tensorboard": config.only not in ("figures", "report")}
+    missing = [name for name, needs in needed.items() if needs and importlib.util.find_spec(name) is None]
+    if missing:
+        raise ValueError(f"{' and '.join(missing)} not installed: pip install 'ikdp[eval]'")
+
+
 def evaluate(config: EvaluateConfig, argv: list[str] | None = None, sizes: Sizes | None = None) -> dict:
     """Run every stage (or `config.only` and what it needs); returns the results dict of the run.
 
     `sizes` overrides the quick/full sizes (for tests).
     """
+    check_packages(config)
     torch.set_num_threads(config.threads)
     arguments = argv if argv is not None else sys.argv[1:]
     command = " ".join(["python -m ikdp.evaluate", *map(shlex.quote, arguments)])

@@ -193,3 +193,18 @@ def test_missing_shipped_checkpoint_is_an_error_in_a_full_run(tmp_path, capsys):
         )
     assert exit_info.value.code == 2
     assert "shipped checkpoint missing" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("absent", "only"), [("matplotlib", None), ("matplotlib", "figures"), ("tensorboard", None)])
+def test_a_missing_extra_is_named_in_one_line_before_any_work(tmp_path, capsys, monkeypatch, absent, only):
+    import importlib.util
+
+    find_spec = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *rest: None if name == absent else find_spec(name))
+    argv = ["--quick", "--out-dir", str(tmp_path / "out"), "--cache-dir", str(tmp_path / "cache")]
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv + (["--only", only] if only else []))
+    assert exit_info.value.code == 2
+    error = capsys.readouterr().err.strip()
+    assert error == f"error: {absent} not installed: pip install 'ikdp[eval]'"
+    assert not (tmp_path / "out").exists() and not (tmp_path / "cache").exists()  # nothing was started
