@@ -190,10 +190,22 @@ def configured_app(args: ScreenshotConfig):
     return server, app
 
 
+def check_browser(chromium: str) -> None:
+    """Exit with one line, before any work, without Playwright or the browser it drives."""
+    import importlib.util
+    import os
+
+    if importlib.util.find_spec("playwright") is None:
+        raise SystemExit("ikdp_viz.screenshot: error: needs playwright: pip install 'ikdp[test]'")
+    if not os.access(chromium, os.X_OK):
+        raise SystemExit(f"ikdp_viz.screenshot: error: --chromium {chromium}: no browser there (apt install chromium)")
+
+
 def main(argv: list[str] | None = None) -> None:
     import tyro
 
     args = tyro.cli(ScreenshotConfig, args=argv)
+    check_browser(args.chromium)
     if args.saved_page is not None:
         screenshot_saved_page(args.saved_page, args.output, chromium=args.chromium, size=args.size, wait=args.wait)
         print(f"wrote {args.output}")

@@ -78,3 +78,19 @@ def test_solving_works_without_the_extras():
     )
     assert result.returncode == 0, result.stderr
     assert float(result.stdout.strip()) < 1e-2  # a refined pose lands on a reachable target
+
+
+def test_the_viewer_without_its_extra_says_what_to_install_in_one_line():
+    result = run_python(BLOCK_EXTRAS + "from ikdp_viz.__main__ import main; main(['--port', '0'])")
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert (
+        result.stderr.strip() == "ikdp-viz: error: the viewer needs viser, trimesh, matplotlib: pip install 'ikdp[viz]'"
+    )
+
+
+def test_the_viewer_checks_for_exactly_the_viz_extras_packages():
+    tomllib = pytest.importorskip("tomllib")
+    from ikdp_viz.__main__ import VIEWER_MODULES
+
+    extra = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]["viz"]
+    assert sorted(VIEWER_MODULES.values()) == sorted(requirement.split(">")[0] for requirement in extra)
