@@ -439,12 +439,17 @@ def enclosing_sphere(points: np.ndarray, iterations: int = 200) -> tuple[np.ndar
 
 def main(argv: list[str] | None = None) -> None:
     """`python -m ikdp.link_spheres panda z1`: fit the named robots' covers again into the package's folder."""
-    from ikdp.robots import load_robot
+    from ikdp.robots import load_robot, robot_names
 
     names = sys.argv[1:] if argv is None else argv
+    if not names or any(name.startswith("-") for name in names):
+        raise SystemExit(f"usage: python -m ikdp.link_spheres ROBOT [ROBOT ...], robots: {', '.join(robot_names())}")
     for name in names:
-        arm = load_robot(name)
-        cover = fit_sphere_cover(arm)
+        try:
+            arm = load_robot(name)
+            cover = fit_sphere_cover(arm)
+        except ValueError as error:
+            raise SystemExit(f"ikdp.link_spheres: error: {error}") from None
         path = store(arm, cover, SHIPPED_FOLDER)
         posed = cover.posed()
         print(

@@ -15,7 +15,6 @@ Ctrl-C stops the server cleanly.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 import signal
 import socket
@@ -25,7 +24,7 @@ from dataclasses import dataclass
 
 from ikdp.shipped import DEFAULT_MODEL, shipped_dir
 from ikdp_viz import command_line
-from ikdp_viz.command_line import checkpoint_path, command_target, target_flag_error
+from ikdp_viz.command_line import check_viewer_packages, checkpoint_path, command_target, target_flag_error
 
 PROGRAM = "ikdp-viz"
 SIGNAL_CHECK_SECONDS = 0.2  # how late Ctrl-C may be noticed at most
@@ -103,24 +102,6 @@ def fail(message: str) -> None:
     command_line.fail(PROGRAM, message)
 
 
-# What the [viz] extra installs, module -> package (tests/test_packaging.py holds them to pyproject.toml)
-VIEWER_MODULES = {module: module for module in ("viser", "trimesh", "matplotlib", "imageio")} | {"collada": "pycollada"}
-
-
-def installed(module: str) -> bool:
-    try:
-        return importlib.util.find_spec(module) is not None
-    except (ImportError, ValueError):  # a finder that refuses it, or a module set to None: not usable either
-        return False
-
-
-def check_packages() -> None:
-    """Exit 2 with one line naming what the [viz] extra would have installed (a core install lacks it)."""
-    missing = [package for module, package in VIEWER_MODULES.items() if not installed(module)]
-    if missing:
-        fail(f"the viewer needs {', '.join(missing)}: pip install 'ikdp[viz]'")
-
-
 def check_address(host: str, port: int) -> None:
     """Exit 2 with one line for a port outside 0..65535 or a host this machine cannot listen on.
 
@@ -139,7 +120,7 @@ def check_address(host: str, port: int) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     config = parse_config(argv)
-    check_packages()
+    check_viewer_packages(PROGRAM)
     check_address(config.host, config.port)
     check_settings(config)
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # a kill stops as cleanly as Ctrl-C

@@ -6,6 +6,7 @@ this; neither imports the other.
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from pathlib import Path
 
@@ -16,6 +17,24 @@ def fail(program: str, message: str) -> None:
     """One line on stderr, `<program>: error: <message>`, and exit status 2: no traceback reaches a user."""
     print(f"{program}: error: {message}", file=sys.stderr)
     raise SystemExit(2)
+
+
+# What the [viz] extra installs, module -> package (tests/test_packaging.py holds them to pyproject.toml)
+VIEWER_MODULES = {module: module for module in ("viser", "trimesh", "matplotlib", "imageio")} | {"collada": "pycollada"}
+
+
+def installed(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):  # a finder that refuses it, or a module set to None: not usable either
+        return False
+
+
+def check_viewer_packages(program: str) -> None:
+    """Exit 2 with one line naming what the [viz] extra would have installed (a core install lacks it)."""
+    missing = [package for module, package in VIEWER_MODULES.items() if not installed(module)]
+    if missing:
+        fail(program, f"the viewer needs {', '.join(missing)}: pip install 'ikdp[viz]'")
 
 
 def checkpoint_path(ckpt: str) -> Path:

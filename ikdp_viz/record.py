@@ -153,12 +153,21 @@ def main(argv: list[str] | None = None) -> None:
     from ikdp.samplers import SAMPLERS
     from ikdp.shipped import shipped_dir
     from ikdp_viz.arm_kinds import arm_kind
-    from ikdp_viz.command_line import checkpoint_path, command_target, fail, load_solver, target_flag_error
+    from ikdp_viz.command_line import (
+        check_viewer_packages,
+        checkpoint_path,
+        command_target,
+        fail,
+        load_solver,
+        target_flag_error,
+    )
+
+    config = tyro.cli(RecordConfig, args=argv, prog=PROGRAM, description=RecordConfig.__doc__)
+    check_viewer_packages(PROGRAM)  # before the modules that import viser
     from ikdp_viz.session import Session
     from ikdp_viz.solving import SolveRequest, solve
     from ikdp_viz.student import STUDENT, model_and_student, opening_sampler
 
-    config = tyro.cli(RecordConfig, args=argv, prog=PROGRAM, description=RecordConfig.__doc__)
     torch.set_num_threads(1)
     solver = load_solver(PROGRAM, checkpoint_path(config.ckpt))
     opened = solver

@@ -80,17 +80,18 @@ def test_solving_works_without_the_extras():
     assert float(result.stdout.strip()) < 1e-2  # a refined pose lands on a reachable target
 
 
-def test_the_viewer_without_its_extra_says_what_to_install_in_one_line():
-    result = run_python(BLOCK_EXTRAS + "from ikdp_viz.__main__ import main; main(['--port', '0'])")
+@pytest.mark.parametrize(("module", "argv"), [("ikdp_viz.__main__", []), ("ikdp_viz.record", ["--output", "x.html"])])
+def test_the_viewer_without_its_extra_says_what_to_install_in_one_line(module, argv):
+    result = run_python(BLOCK_EXTRAS + f"from {module} import main, PROGRAM; print(PROGRAM, flush=True); main({argv})")
     assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
-    assert (
-        result.stderr.strip() == "ikdp-viz: error: the viewer needs viser, trimesh, matplotlib: pip install 'ikdp[viz]'"
-    )
+    program = result.stdout.strip()
+    wanted = f"{program}: error: the viewer needs viser, trimesh, matplotlib: pip install 'ikdp[viz]'"
+    assert result.stderr.strip() == wanted
 
 
 def test_the_viewer_checks_for_exactly_the_viz_extras_packages():
     tomllib = pytest.importorskip("tomllib")
-    from ikdp_viz.__main__ import VIEWER_MODULES
+    from ikdp_viz.command_line import VIEWER_MODULES
 
     extra = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]["viz"]
     assert sorted(VIEWER_MODULES.values()) == sorted(requirement.split(">")[0] for requirement in extra)
