@@ -111,6 +111,17 @@ def test_int8_weights_sample_close_to_the_float_weights(panda, panda_file):
     assert exact.model.denoiser.trunk_layers() is exact.model.denoiser.blocks  # the float model keeps its own
 
 
+def test_an_int8_pose_does_not_depend_on_the_targets_solved_beside_it(panda, panda_file):
+    quantized = ikdp.load(panda_file, precision="int8")
+    goals = panda.end_effector(panda.random_poses(32, generator=torch.Generator().manual_seed(5)))
+    noise = torch.randn(32, 4, quantized.noise_dim, generator=torch.Generator().manual_seed(6))
+    options = {"num_samples": 4, "sampler": "ddim", "steps": 2}
+    together = quantized.solve(goals, initial_noise=noise, **options).raw_angles
+    for index in (0, 17, 31):  # alone, each gets the very pose it got among the 32 (was 0.2 rad apart, median)
+        alone = quantized.solve(goals[index : index + 1], initial_noise=noise[index : index + 1], **options)
+        assert torch.equal(alone.raw_angles[0], together[index])
+
+
 def test_int8_is_refused_in_one_line_where_it_cannot_run(panda_file):
     with pytest.raises(ValueError, match=r"precision: expected one of \('float32', 'int8'\), got 'fp8'"):
         ikdp.load(panda_file, precision="fp8")
