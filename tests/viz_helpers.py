@@ -183,12 +183,23 @@ def open_page_collecting_errors(browser, app, *, height: int = 900) -> tuple[obj
     return page, errors
 
 
-# A WebGL canvas cleared to red: a browser that shows no red here cannot draw the viewer at all
-RED_CANVAS = (
-    "<canvas id='c' width='64' height='64'></canvas><script>"
-    "const gl = document.getElementById('c').getContext('webgl');"
-    "if (gl) { gl.clearColor(1, 0, 0, 1); gl.clear(gl.COLOR_BUFFER_BIT); }</script>"
-)
+# A WebGL canvas painted red by a compiled shader (as viser's scene is drawn, not just cleared): a browser that
+# shows no red here cannot draw the viewer at all
+RED_CANVAS = """<canvas id='c' width='64' height='64'></canvas><script>
+const gl = document.getElementById('c').getContext('webgl');
+if (gl) {
+  const shader = (kind, text) => { const s = gl.createShader(kind); gl.shaderSource(s, text); gl.compileShader(s);
+                                   return s; };
+  const program = gl.createProgram();
+  gl.attachShader(program, shader(gl.VERTEX_SHADER, 'attribute vec2 p; void main() { gl_Position = vec4(p, 0, 1); }'));
+  gl.attachShader(program, shader(gl.FRAGMENT_SHADER, 'void main() { gl_FragColor = vec4(1, 0, 0, 1); }'));
+  gl.linkProgram(program); gl.useProgram(program);
+  gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
+  gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);
+  const p = gl.getAttribLocation(program, 'p'); gl.enableVertexAttribArray(p);
+  gl.vertexAttribPointer(p, 2, gl.FLOAT, false, 0, 0);
+  gl.drawArrays(gl.TRIANGLES, 0, 3);
+}</script>"""
 
 
 class RenderingBrowser:
