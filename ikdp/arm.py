@@ -144,6 +144,10 @@ class PlanarArm:
         tip = tip_position(headings.double(), self._lengths64.to(headings.device))
         return (tip - targets.double()).norm(dim=-1).float()
 
+    def tip_and_rotation_errors(self, headings: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, None]:
+        """`tip_error`, and no rotation error: a planar target is a point."""
+        return self.tip_error(headings, targets), None
+
     def target_features(self, targets: torch.Tensor) -> torch.Tensor:
         """What a denoiser is conditioned on: the target in units of the reach, (..., 2)."""
         return targets / self.span

@@ -472,8 +472,7 @@ class ChainArm:
         Computed in float64 (refined poses land within 1e-6 m, below float32 FK's rounding),
         returned as float32. Targets may be (..., 3) or (..., 7).
         """
-        _, position = self.end_effector_frame(self._as_joints(joints).double())
-        return (position - targets[..., :3].double()).norm(dim=-1).float()
+        return self.tip_and_rotation_errors(joints, targets[..., :3])[0]
 
     tip_error = position_error  # THE tip error of every arm: for a chain, the position error
 
@@ -481,9 +480,16 @@ class ChainArm:
         """Geodesic angle between the end effector's rotation and the target's, (...), radians, in float64."""
         if targets.shape[-1] != 7:
             raise ValueError(f"targets: rotation_error needs pose targets (..., 7), got {tuple(targets.shape)}")
-        rotation, _ = self.end_effector_frame(self._as_joints(joints).double())
+        return self.tip_and_rotation_errors(joints, targets)[1]
+
+    def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """`position_error` and, for pose targets (..., 7), `rotation_error`, from one float64 kinematics pass."""
+        rotation, position = self.end_effector_frame(self._as_joints(joints).double())
+        position_error = (position - targets[..., :3].double()).norm(dim=-1).float()
+        if targets.shape[-1] != 7:
+            return position_error, None
         relative = quaternion_multiply(targets[..., 3:7].double(), quaternion_conjugate(matrix_to_quaternion(rotation)))
-        return quaternion_angle(relative).float()
+        return position_error, quaternion_angle(relative).float()
 
     def target_features(self, targets: torch.Tensor) -> torch.Tensor:
         """What a denoiser is conditioned on, (..., condition_dim).

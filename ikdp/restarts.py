@@ -20,12 +20,11 @@ def within_tolerances(arm, joints: torch.Tensor, goals: torch.Tensor, constraint
     `constraints` (a ConstraintSet over the same B x K rows): a partial target's rotation error replaces the
     full one (none for position only), and every constraint must hold (violation 0, as tracking checks).
     """
-    within = arm.tip_error(joints, goals) < arm.position_tolerance
+    position, rotation = arm.tip_and_rotation_errors(joints, goals)
+    within = position < arm.position_tolerance
     partial = None if constraints is None else constraints.partial
     if partial is not None:
         rotation = partial.rotation_error(joints, goals)
-    else:
-        rotation = arm.rotation_error(joints, goals) if arm.target_dim == 7 else None
     if rotation is not None:
         within &= rotation.to(within.device) < arm.rotation_tolerance
     if constraints is not None:

@@ -188,24 +188,20 @@ class Solver:
         if bound is not None:
             raw = bound.hold(raw)
         per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
-        raw_error = arm.tip_error(raw, per_sample_targets)
-        angles, error = raw, raw_error
+        angles = raw
         # refinement and restarts aim at the nearest reachable point: for a target beyond reach, the stretched arm
         goals = sample_targets.reshape(batch, num_samples, -1) if per_target == 1 else conditions[:, None]
         goals = goals.expand(-1, num_samples, -1)
         if refine_steps and not result.stopped:
             task = None if bound is None else bound.refine_task()
             angles = damped_least_squares(arm, raw, goals, steps=refine_steps, task=task)
-            error = arm.tip_error(angles, per_sample_targets)
         restarted = None
         if restart_steps and not result.stopped:
             angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator, bound)
-            error = arm.tip_error(angles, per_sample_targets)
-        rotation_error = None
+        error, rotation_error = arm.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
+        raw_error = error if angles is raw else arm.tip_error(raw, per_sample_targets)
         if bound is not None and bound.partial is not None:
             rotation_error = bound.partial.rotation_error(angles, per_sample_targets)
-        elif arm.target_dim == 7:
-            rotation_error = arm.rotation_error(angles, per_sample_targets)
         states, estimates = result.states, result.estimates
         if per_target == 1:  # (S, B * K, 1, J) -> (S, B, K, J)
             states = None if states is None else states.reshape(states.shape[0], batch, num_samples, -1)
