@@ -125,44 +125,32 @@ def robot(timeout: float = 120.0) -> None:
         server.stop()
 
 
+def run_script(name: str, *arguments: str, timeout: float) -> Path:
+    """One of the wheel's console scripts, from this venv, in a fresh folder that `{folder}` in `arguments` names;
+    checked to exit 0 (its last line of stderr shown). Returns the folder."""
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp())
+    command = [str(Path(sys.executable).parent / name), *(argument.format(folder=folder) for argument in arguments)]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=folder, timeout=timeout)
+    check(done.returncode == 0, f"{name} {' '.join(arguments)} exits 0 ({done.stderr.strip().splitlines()[-1:]})")
+    return folder
+
+
 def train() -> None:
     """`ikdp-train` with only [train] installed: a few steps of a 3-link model, its checkpoint loadable."""
     installed_not_cloned()
-    import tempfile
-
     import ikdp
 
-    folder = Path(tempfile.mkdtemp())
-    command = [
-        str(Path(sys.executable).parent / "ikdp-train"),
-        "--joints",
-        "3",
-        "--steps",
-        "5",
-        "--output",
-        str(folder / "small.pt"),
-    ]
-    done = subprocess.run(command, capture_output=True, text=True, cwd=folder, timeout=600)
-    check(done.returncode == 0, f"ikdp-train --joints 3 --steps 5 exits 0 ({done.stderr.strip().splitlines()[-1:]})")
+    folder = run_script("ikdp-train", "--joints", "3", "--steps", "5", "--output", "{folder}/small.pt", timeout=600)
     check(ikdp.load(folder / "small.pt").arm.num_joints == 3, "its checkpoint loads with 3 joints")
 
 
 def evaluate() -> None:
     """`ikdp-evaluate --quick` with [train,eval] (and not [viz]): every stage runs and writes its report."""
     installed_not_cloned()
-    import tempfile
-
-    folder = Path(tempfile.mkdtemp())
-    command = [
-        str(Path(sys.executable).parent / "ikdp-evaluate"),
-        "--quick",
-        "--out-dir",
-        str(folder / "docs"),
-        "--cache-dir",
-        str(folder / "cache"),
-    ]
-    done = subprocess.run(command, capture_output=True, text=True, cwd=folder, timeout=1200)
-    check(done.returncode == 0, f"ikdp-evaluate --quick exits 0 ({done.stderr.strip().splitlines()[-1:]})")
+    arguments = ("--quick", "--out-dir", "{folder}/docs", "--cache-dir", "{folder}/cache")
+    folder = run_script("ikdp-evaluate", *arguments, timeout=1200)
     written = sorted(path.name for path in (folder / "docs").iterdir())
     check({"RESULTS.md", "results.json", "figures"} <= set(written), f"it wrote {written}")
 
