@@ -205,25 +205,18 @@ def obstacles_part(solver, config: ConstraintBenchmarkConfig) -> dict:
         rows[label] = row(valid, seconds)
         solved[label] = valid.any(dim=1)
 
-    for text in (config.sampler, *config.obstacle_extra_samplers):
+    runs = [(text, 0) for text in (config.sampler, *config.obstacle_extra_samplers)]
+    runs += [(config.sampler, config.restart_steps)] if config.restart_steps else []
+    for text, restart_steps in runs:
         name, steps = parse_sampler(text)
-        guided = {**options, "sampler": name, "steps": steps}
+        guided = {**options, "sampler": name, "steps": steps, "restart_steps": restart_steps}
         label = f"IKDP {text}, K={config.samples}, guided + {config.refine_steps} constrained DLS steps"
+        label += f", restarts + {restart_steps}" if restart_steps else ""
         seconds, out = timed(
             lambda guided=guided: solver.solve(
                 targets, constraints=[obstacle], generator=torch.Generator().manual_seed(1), **guided
             )
         )
-        record(label, seconds, out.angles)
-    if config.restart_steps:
-        label = f"IKDP {config.sampler}, K={config.samples}, guided + {config.refine_steps} constrained DLS steps"
-        label += f", restarts + {config.restart_steps}"
-        seconds, out = timed(
-            lambda: solver.solve(
-                targets, constraints=[obstacle], generator=torch.Generator().manual_seed(1), **options,
-                restart_steps=config.restart_steps,
-            )
-        )  # fmt: skip
         record(label, seconds, out.angles)
     label = f"IKDP {config.sampler}, K={config.samples}, unguided + {config.refine_steps} DLS steps, filtered"
     seconds, out = timed(lambda: solver.solve(targets, generator=torch.Generator().manual_seed(1), **options))
