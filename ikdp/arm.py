@@ -26,9 +26,15 @@ from ikdp.kinematics import (
 )
 
 
-def uniform_angles(shape: tuple[int, ...], *, generator: torch.Generator | None = None) -> torch.Tensor:
-    """Angles uniform on [-pi, pi), any shape: the draw of random headings and random restarts."""
-    return (torch.rand(shape, generator=generator) * 2 - 1) * math.pi
+def uniform_angles(
+    shape: tuple[int, ...], *, generator: torch.Generator | None = None, like: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Angles uniform on [-pi, pi), any shape: the draw of random headings and random restarts.
+
+    `like`: drawn on its device and in its dtype (then `generator` must live on that device).
+    """
+    where = {} if like is None else {"device": like.device, "dtype": like.dtype}
+    return (torch.rand(shape, generator=generator, **where) * 2 - 1) * math.pi
 
 
 def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
@@ -179,6 +185,10 @@ class PlanarArm:
     def random_poses(self, count: int, *, generator: torch.Generator | None = None) -> torch.Tensor:
         """`count` poses with every heading uniform on the circle, (count, N)."""
         return uniform_angles((count, self.num_joints), generator=generator)
+
+    def random_poses_like(self, like: torch.Tensor, *, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Poses shaped like `like` (..., N), on its device, from a generator there: no host copy (CUDA graphs)."""
+        return uniform_angles(like.shape, generator=generator, like=like)
 
 
 def arm_from_config(config: dict):

@@ -19,6 +19,7 @@ machine's; `urdf_path` answers with the file on this machine (`recorded_urdf_pat
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -267,7 +268,7 @@ class ChainArm:
         """(3,) the first joint's origin: it never moves, so the end effector stays in a ball around it."""
         return self._offsets[0, :3, 3].float()
 
-    @property
+    @functools.cached_property
     def reach(self) -> tuple[float, float]:
         """(inner, outer) radius around `reach_center`: 0 (not known) and a bound on the distance.
 
@@ -318,6 +319,7 @@ class ChainArm:
             # made once per device: a host-to-device copy per call would break CUDA-graph capture
             "prismatic": torch.tensor([kind == "prismatic" for kind in self.joint_types]),
             "link_parents": torch.tensor(self.link_frames) + 1,  # -1 (base) -> row 0
+            "reach_center": self._offsets[0, :3, 3],
         }
         return {
             name: value.to(device=like.device, dtype=like.dtype if value.is_floating_point() else value.dtype)
@@ -546,12 +548,12 @@ class ChainArm:
 
         True means "inside the reach ball", not "reachable": joint limits and orientation are not checked.
         """
-        center = self.reach_center.to(device=targets.device, dtype=targets.dtype)
+        center = self._constants_like(targets)["reach_center"]
         return (targets[..., :3] - center).norm(dim=-1) <= self.reach[1] + 1e-6
 
     def clamp_to_workspace(self, targets: torch.Tensor) -> torch.Tensor:
         """(..., target_dim) -> positions pulled onto the reach ball where outside it; quaternions unchanged."""
-        center = self.reach_center.to(device=targets.device, dtype=targets.dtype)
+        center = self._constants_like(targets)["reach_center"]
         offset = targets[..., :3] - center
         radius = offset.norm(dim=-1, keepdim=True)
         scale = torch.clamp(self.reach[1] / radius.clamp_min(1e-12), max=1.0)
@@ -564,4 +566,12 @@ class ChainArm:
             raise ValueError(f"count: expected a number of poses >= 0, got {count}")
         limits = self.joint_limits
         unit = torch.rand((count, self.num_joints), generator=generator)
+        return limits[:, 0] + unit * (limits[:, 1] - limits[:, 0])
+
+    def random_poses_like(self, like: torch.Tensor, *, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Poses shaped like `like` (..., J), uniform within the limits, on its device and in its dtype, from a
+        generator on that device: the limits are the per-device constants, so nothing is copied from the host
+        (a CUDA graph captures the draw)."""
+        limits = self._constants_like(like)["limits"]
+        unit = torch.rand(like.shape, generator=generator, device=like.device, dtype=like.dtype)
         return limits[:, 0] + unit * (limits[:, 1] - limits[:, 0])

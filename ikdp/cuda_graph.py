@@ -10,15 +10,38 @@ same seed (tests/test_cuda_graph.py checks it where CUDA exists).
     graphed = CapturedReverseDiffusion(solver.model, batch=1, num_samples=16)
     out = graphed(targets, seed=0)       # a Trajectory; its tensors are overwritten by the next call
 
-Not yet run on GPU hardware: the project's machine has none.
+A whole batch solve (sampling, refinement, the restarts' fallback, the errors) is captured the same way by
+CapturedSolve (`solver.capture(batch, ...)`): its body, `solve_without_sync`, asks the device nothing and keeps
+every shape fixed, so it runs eagerly on a CPU too (tests/test_cuda_graph.py checks that it makes no host sync).
 """
 
 from __future__ import annotations
 
 import torch
 
-from ikdp.samplers import make_sampler
+from ikdp.refine import damped_least_squares
+from ikdp.restarts import restart_unreached
+from ikdp.samplers import Sampler, make_sampler
 from ikdp.sampling import Trajectory, run_reverse_diffusion, step_conditions
+from ikdp.solver import SolveResult
+
+
+def capture(run, generator: torch.Generator):
+    """`run()` recorded as a CUDA graph drawing from `generator` -> (graph, run's output, overwritten by replays).
+
+    A warm-up run on a side stream first makes what a capture may not (cuBLAS handles, the per-device constants
+    of the arm and the sampler, the allocator's pools).
+    """
+    side = torch.cuda.Stream()
+    side.wait_stream(torch.cuda.current_stream())
+    with torch.cuda.stream(side), torch.inference_mode():
+        run()
+    torch.cuda.current_stream().wait_stream(side)
+    graph = torch.cuda.CUDAGraph()
+    graph.register_generator_state(generator)
+    with torch.cuda.graph(graph), torch.inference_mode():
+        output = run()
+    return graph, output
 
 
 class CapturedReverseDiffusion:
@@ -46,16 +69,7 @@ class CapturedReverseDiffusion:
         self.targets = torch.zeros((batch, model.arm.target_dim), device=device)
         self.conditions = self._conditions(self.targets)
         self.generator = torch.Generator(device=device)
-        # warm up on a side stream (cuBLAS handles, allocator), then capture the same call
-        side = torch.cuda.Stream()
-        side.wait_stream(torch.cuda.current_stream())
-        with torch.cuda.stream(side), torch.inference_mode():
-            self._run()
-        torch.cuda.current_stream().wait_stream(side)
-        self.graph = torch.cuda.CUDAGraph()
-        self.graph.register_generator_state(self.generator)
-        with torch.cuda.graph(self.graph), torch.inference_mode():
-            self.output = self._run()
+        self.graph, self.output = capture(self._run, self.generator)
 
     def _conditions(self, targets: torch.Tensor) -> torch.Tensor:
         conditions = step_conditions(self.model.denoiser, self.sampler.timesteps, targets, self.num_samples)
@@ -90,3 +104,101 @@ class CapturedReverseDiffusion:
         self.generator.manual_seed(seed)
         self.graph.replay()
         return self.output
+
+
+class CapturedSolve:
+    """One shape's whole `solve` on CUDA as one CUDA graph: targets in, a SolveResult out (no constraints).
+
+        captured = solver.capture(1000, num_samples=16, sampler="ddim", steps=1, refine_steps=8)
+        result = captured(targets, seed=0)  # its tensors are overwritten by the next call
+
+    The poses are `solve`'s for the same seed except the restarts: theirs come from every target's fresh
+    starts drawn on the GPU (`restart_every_target`), where solve draws only the unreached ones' on the CPU.
+    """
+
+    def __init__(
+        self,
+        solver,
+        *,
+        batch: int,
+        num_samples: int = 16,
+        sampler: str = "ddpm",
+        steps: int | None = None,
+        spacing: str | None = None,
+        refine_steps: int = 0,
+        restart_steps: int = 0,
+    ):
+        if solver.device.type != "cuda":
+            raise ValueError(f"solver: expected one loaded on a CUDA device, got one on {solver.device}")
+        spacing = solver.default_spacing(sampler, steps) if spacing is None else spacing
+        solver.check_options(batch, num_samples, sampler, steps, spacing, refine_steps, None, None)
+        if not isinstance(restart_steps, int) or restart_steps < 0:
+            raise ValueError(f"restart_steps: expected a non-negative integer, got {restart_steps!r}")
+        self.solver = solver
+        self.options = dict(num_samples=num_samples, refine_steps=refine_steps, restart_steps=restart_steps)
+        self.sampler = make_sampler(sampler, solver.model.schedule, steps, spacing)  # its buffers: the graph's
+        self.asked = torch.zeros((batch, solver.arm.target_dim), device=solver.device)
+        self.generator = torch.Generator(device=solver.device)
+        self.graph, self.output = capture(self._run, self.generator)
+
+    def _run(self):
+        return solve_without_sync(self.solver, self.sampler, self.asked, generator=self.generator, **self.options)
+
+    @torch.inference_mode()
+    def __call__(self, targets, *, seed: int):
+        """targets (B, target_dim), as `solve` takes them -> the SolveResult of `solve(targets, ..., generator=
+        torch.Generator("cuda").manual_seed(seed))` (restarts aside, above)."""
+        targets = self.solver.arm.validate_targets(targets).to(self.asked.device)
+        if targets.shape != self.asked.shape:
+            raise ValueError(f"targets: expected shape {tuple(self.asked.shape)}, got {tuple(targets.shape)}")
+        self.asked.copy_(targets)
+        self.generator.manual_seed(seed)
+        self.graph.replay()
+        return self.output
+
+
+@torch.inference_mode()
+def solve_without_sync(
+    solver,
+    sampler: Sampler,
+    targets: torch.Tensor,
+    *,
+    num_samples: int,
+    refine_steps: int,
+    restart_steps: int,
+    generator: torch.Generator | None,
+):
+    """`Solver.solve` for validated targets (B, target_dim), without constraints, callbacks or trajectories, and
+    with nothing that waits for the device or sizes a tensor by its data: what a CUDA graph can hold."""
+    arm, model = solver.arm, solver.model
+    conditions = arm.clamp_to_workspace(targets)
+    result = run_reverse_diffusion(
+        model.denoiser,
+        model.schedule,
+        model.representation,
+        sampler,
+        conditions,
+        num_samples=num_samples,
+        prediction=model.config.prediction,
+        generator=generator,
+    )
+    raw = result.headings
+    goals = conditions[:, None].expand(-1, num_samples, -1)
+    angles = damped_least_squares(arm, raw, goals, steps=refine_steps, sync_free=True) if refine_steps else raw
+    restarted = None
+    if restart_steps:
+        angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator, sync_free=True)
+    per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
+    error, rotation_error = arm.tip_and_rotation_errors(angles, per_sample_targets)
+    return SolveResult(
+        angles=angles,
+        tip_error=error,
+        trajectory=None,
+        timesteps=result.timesteps,
+        reachable=arm.is_reachable(targets),
+        raw_angles=raw,
+        raw_tip_error=error if angles is raw else arm.tip_error(raw, per_sample_targets),
+        rotation_error=rotation_error,
+        network_evaluations=result.network_evaluations,
+        restarted=restarted,
+    )

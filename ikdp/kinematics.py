@@ -90,5 +90,7 @@ def project_to_workspace(targets: torch.Tensor, lengths) -> torch.Tensor:
     inner, outer = reach(lengths)
     radius = targets.norm(dim=-1, keepdim=True)
     clamped = radius.clamp(min=inner, max=outer)
-    direction = torch.where(radius > 0, targets / radius.clamp_min(1e-12), torch.tensor([1.0, 0.0]).to(targets))
+    along_x = torch.zeros_like(targets)  # the direction of a target at the origin; no host copy (CUDA graphs)
+    along_x[..., 0].fill_(1.0)
+    direction = torch.where(radius > 0, targets / radius.clamp_min(1e-12), along_x)
     return torch.where((radius < inner) | (radius > outer), direction * clamped, targets)

@@ -126,6 +126,7 @@ def damped_least_squares(
     damping: float = 1e-3,
     max_miss_fraction: float = 0.2,
     task: RefineTask | None = None,
+    sync_free: bool = False,
 ) -> torch.Tensor:
     """joints (..., J), targets (..., target_dim) -> refined joints (..., J), within the arm's limits.
 
@@ -135,6 +136,10 @@ def damped_least_squares(
     pose keeps the better of the two (`better_of`). Runs in float64: the last steps
     correct errors near float32's resolution. A `task` replaces the end-effector error and its
     Jacobian (constraints: partial targets, obstacles, locked joints).
+
+    `sync_free`: never ask the device whether a joint is blocked (a host sync, which a CUDA graph cannot
+    capture): every pose's step without its blocked joints is computed and kept only where one was blocked.
+    The same poses as the default, which solves that step for the blocked poses alone (cheaper on a CPU).
     """
     if not isinstance(steps, int) or steps < 0:
         raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
@@ -153,7 +158,12 @@ def damped_least_squares(
         step = prioritized_step(jacobian, error, penetrations, damping**2)
         moved = arm.normalize_joints(joints + step)
         blocked = arm.blocked_by_limits(joints, step)
-        if blocked is not None and bool(blocked.any()):
+        if blocked is not None and sync_free:
+            held_step = prioritized_step(jacobian, error, penetrations, damping**2, ~blocked)  # blocked: zeroed
+            every_target = targets.expand(*joints.shape[:-1], targets.shape[-1])
+            better = better_of(arm, every_target, moved, arm.normalize_joints(joints + held_step), task)
+            moved = torch.where(blocked.any(dim=-1, keepdim=True), better, moved)
+        elif blocked is not None and bool(blocked.any()):
             if task is None:  # only the poses with a blocked joint try the step without it: a few in a thousand
                 rows = blocked.any(dim=-1)
                 held_step = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], damping**2)

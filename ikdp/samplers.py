@@ -58,6 +58,14 @@ class Sampler:
     def num_steps(self) -> int:
         return len(self.timesteps)
 
+    def timestep_tensor(self, device: torch.device) -> torch.Tensor:
+        """`timesteps` as a tensor on `device`, made once per device: a CUDA graph's capture may not copy from
+        the host, and its warm-up run makes this first."""
+        tensors = self.__dict__.setdefault("_timestep_tensors", {})
+        if device not in tensors:
+            tensors[device] = torch.tensor(self.timesteps, device=device)
+        return tensors[device]
+
     def previous_timestep(self, index: int) -> int:
         """The timestep step `index` lands on; -1 is the clean end."""
         return self.timesteps[index + 1] if index + 1 < len(self.timesteps) else -1

@@ -53,13 +53,14 @@ class Trajectory:
     network_evaluations: int = 0  # S', the denoiser calls each sample went through, one after another
 
 
-def step_conditions(denoiser, timesteps: list[int], targets: torch.Tensor, num_samples: int):
+def step_conditions(denoiser, timesteps, targets: torch.Tensor, num_samples: int):
     """Every step's condition, (S, M, ...), in one call when it fits in memory, else None.
 
+    `timesteps`: a list, or a tensor on the targets' device (`Sampler.timestep_tensor`: no host copy).
     One target's condition broadcasts over its K rows as it is; several are spread over them.
     """
     batch = targets.shape[0]
-    t_all = torch.tensor(timesteps, device=targets.device)
+    t_all = torch.as_tensor(timesteps, device=targets.device)
     per_row = denoiser.condition(t_all[:1], targets[:1]).numel()
     if len(timesteps) * batch * num_samples * per_row > PRECOMPUTE_CONDITION_LIMIT:
         return None
@@ -122,8 +123,8 @@ def run_reverse_diffusion(
     per_target = getattr(reader, "accepts_per_target_conditions", False) and conditions is None
     row_targets = targets if per_target else targets.repeat_interleave(num_samples, dim=0)  # (M or B, C)
     if conditions is None:
-        conditions = step_conditions(denoiser, sampler.timesteps, targets, 1 if per_target else num_samples)
-    t_all = torch.tensor(sampler.timesteps, device=targets.device) if conditions is None else None
+        t_all = sampler.timestep_tensor(targets.device)
+        conditions = step_conditions(denoiser, t_all, targets, 1 if per_target else num_samples)
     sampler.reset()
     unflatten = (batch, num_samples)
     steps_run, stopped = 0, False

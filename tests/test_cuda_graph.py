@@ -1,11 +1,16 @@
-"""The CUDA-graph replay of the reverse loop gives the eager loop's samples (needs CUDA; skipped without it)."""
+"""The CUDA-graph replay of the reverse loop and of a whole solve gives the eager samples (needs CUDA; skipped without
+it), and what a graph captures makes no host sync (checked on the CPU)."""
 
 import pytest
 import torch
+from torch.utils._python_dispatch import TorchDispatchMode
 
 import ikdp
-from ikdp.cuda_graph import CapturedReverseDiffusion
+from ikdp.cuda_graph import CapturedReverseDiffusion, solve_without_sync
 from ikdp.model import IKDiffusion, ModelConfig
+from ikdp.refine import damped_least_squares, dls_step
+from ikdp.restarts import restart_every_target, within_tolerances
+from ikdp.samplers import make_sampler
 
 needs_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device")
 
@@ -55,3 +60,142 @@ def test_replay_is_bit_identical_to_the_eager_loop(name):
     )
     replayed = graphed(targets, seed=5)
     assert torch.equal(replayed.states, eager.states)
+
+
+# --- the whole solve as a graph: its body runs on a CPU too, and is checked there -------------------------------
+
+HOST_SYNCS = {"aten::_local_scalar_dense", "aten::nonzero", "aten::masked_select", "aten::is_nonzero", "aten::equal"}
+
+
+class HostSyncRecorder(TorchDispatchMode):
+    """Records the ops that would wait for a GPU or copy from the host, which a CUDA graph cannot capture:
+    a tensor read into Python, a shape that depends on data, a tensor made from host data (`torch.tensor`)."""
+
+    def __init__(self):
+        super().__init__()
+        self.found: list[str] = []
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        name = func._schema.name
+        masks = name in ("aten::index", "aten::index_put_") and any(
+            isinstance(index, torch.Tensor) and index.dtype == torch.bool for index in args[1] if index is not None
+        )
+        if name in HOST_SYNCS or name == "aten::lift_fresh" or masks:
+            self.found.append(name)
+        return func(*args, **(kwargs or {}))
+
+
+def panda_targets(solver, count, seed):
+    return solver.arm.end_effector(solver.arm.random_poses(count, generator=torch.Generator().manual_seed(seed)))
+
+
+@pytest.mark.parametrize(
+    "name, sampler, steps, restart_steps",
+    [("ikdp_panda_1step", "ddim", 1, 0), ("ikdp_panda_1step", "ddim", 1, 5), ("ikdp_n4", "dpmpp2m", 3, 5)],
+)
+def test_the_captured_solve_asks_the_device_nothing(name, sampler, steps, restart_steps):
+    """What `capture` records must not sync: run on a CPU under a recorder, after a warm-up as capture does."""
+    solver = ikdp.load(name)
+    loop = make_sampler(sampler, solver.model.schedule, steps, solver.default_spacing(sampler, steps))
+    targets = panda_targets(solver, 20, 0)
+    generator = torch.Generator().manual_seed(0)
+    options = dict(num_samples=4, refine_steps=3, restart_steps=restart_steps, generator=generator)
+    solve_without_sync(solver, loop, targets, **options)  # warm-up: the per-device constants
+    recorder = HostSyncRecorder()
+    with recorder, torch.inference_mode():
+        solve_without_sync(solver, loop, targets, **options)
+    assert recorder.found == []
+    with recorder, torch.inference_mode():  # the recorder sees what it must: solve's own restarts do sync
+        solver.solve(targets, num_samples=4, sampler=sampler, steps=steps, refine_steps=3, restart_steps=5)
+    assert recorder.found
+
+
+def test_the_captured_solve_gives_solves_poses():
+    """Same seed, same poses as `solve` on this CPU (no restarts: theirs are drawn differently)."""
+    solver = ikdp.load("ikdp_panda_1step")
+    targets = panda_targets(solver, 30, 1)
+    sampler = make_sampler("ddim", solver.model.schedule, 1, "quadratic")
+    generator = torch.Generator().manual_seed(4)
+    body = solve_without_sync(
+        solver, sampler, targets, num_samples=8, refine_steps=6, restart_steps=0, generator=generator
+    )
+    eager = solver.solve(
+        targets, num_samples=8, sampler="ddim", steps=1, refine_steps=6, generator=torch.Generator().manual_seed(4)
+    )
+    # the CPU's eager solve runs the FiLM denoiser through its fused workspace: equal to float32's rounding
+    torch.testing.assert_close(body.raw_angles, eager.raw_angles, atol=1e-5, rtol=0)
+    # six DLS steps on near-singular poses amplify those 1e-6 rad differences a hundredfold, no more
+    torch.testing.assert_close(body.angles, eager.angles, atol=1e-3, rtol=0)
+    torch.testing.assert_close(body.tip_error, eager.tip_error, atol=1e-4, rtol=0)  # 0.1 mm
+    assert float(body.tip_error.median()) < 1e-3  # refined: most poses within a millimetre
+    assert body.network_evaluations == eager.network_evaluations == 1
+
+
+def test_sync_free_refinement_moves_blocked_poses_as_the_default_does():
+    """Poses with joints on their limits, pushed further out: the dense path picks what the subset path picks."""
+    solver = ikdp.load("ikdp_panda")
+    arm = solver.arm
+    limits = arm.joint_limits
+    poses = arm.random_poses(400, generator=torch.Generator().manual_seed(2))
+    poses[::2, 3] = limits[3, 1]  # half of them on joint 4's upper limit, some will be pushed on past it
+    poses[::3, 5] = limits[5, 0]
+    goals = panda_targets(solver, 400, 3)
+    default = damped_least_squares(arm, poses, goals, steps=4)
+    dense = damped_least_squares(arm, poses, goals, steps=4, sync_free=True)
+    error, jacobian = arm.task_error_and_jacobian(poses.double(), goals.double())
+    blocked = arm.blocked_by_limits(poses.double(), dls_step(jacobian, error, 1e-6))
+    assert 0 < int(blocked.any(-1).sum()) < 400  # the case the two paths treat differently, and not every pose
+    assert torch.equal(dense, default)
+
+
+def test_restarting_every_target_keeps_the_reached_and_restarts_the_rest():
+    solver = ikdp.load("ikdp_panda")
+    arm = solver.arm
+    targets = panda_targets(solver, 12, 5)
+    reached = solver.solve(
+        targets, num_samples=4, sampler="ddpm", refine_steps=10, generator=torch.Generator().manual_seed(0)
+    )
+    angles = reached.angles.clone()
+    angles[6:] = arm.random_poses(6 * 4, generator=torch.Generator().manual_seed(1)).reshape(6, 4, -1)  # far off
+    goals = targets[:, None].expand(-1, 4, -1)
+    before = within_tolerances(arm, angles, goals).any(-1)
+    restarted = ~before
+    out = restart_every_target(arm, angles, goals, restarted, 30, torch.Generator().manual_seed(2))
+    assert torch.equal(out[before], angles[before])  # nothing reached is touched
+    assert bool(restarted[6:].all())
+    assert within_tolerances(arm, out[6:], goals[6:]).any(-1).float().mean() >= 0.5  # 30 DLS steps from 4 starts
+
+
+@pytest.mark.parametrize("name", ["ikdp_n4", "ikdp_panda"])
+def test_random_poses_like_draw_within_the_limits_where_asked(name):
+    arm = ikdp.load(name).arm
+    like = torch.zeros(50, 3, arm.num_joints, dtype=torch.float64)
+    poses = arm.random_poses_like(like, generator=torch.Generator().manual_seed(0))
+    assert poses.shape == like.shape and poses.dtype == torch.float64
+    torch.testing.assert_close(arm.normalize_joints(poses), poses, atol=1e-9, rtol=0)  # nothing clamped or wrapped
+    assert float(poses.std()) > 0.3  # drawn, not a constant
+
+
+def test_capture_refuses_a_cpu_solver():
+    with pytest.raises(ValueError, match="solver: expected one loaded on a CUDA device, got one on cpu"):
+        ikdp.load("ikdp_n4").capture(4)
+
+
+@needs_cuda
+@pytest.mark.parametrize("name, sampler, steps", [("ikdp_panda_1step", "ddim", 1), ("ikdp_n4", "dpmpp2m", 10)])
+def test_the_captured_solve_replays_the_eager_solve(name, sampler, steps):
+    solver = ikdp.load(name, device="cuda")
+    targets = panda_targets(solver, 64, 6).cuda()
+    captured = solver.capture(64, num_samples=16, sampler=sampler, steps=steps, refine_steps=5)
+    for seed in (0, 9):
+        eager = solver.solve(
+            targets,
+            num_samples=16,
+            sampler=sampler,
+            steps=steps,
+            refine_steps=5,
+            generator=torch.Generator("cuda").manual_seed(seed),
+        )
+        replayed = captured(targets, seed=seed)
+        torch.testing.assert_close(replayed.raw_angles, eager.raw_angles, atol=1e-5, rtol=0)
+        torch.testing.assert_close(replayed.angles, eager.angles, atol=1e-4, rtol=0)

@@ -82,7 +82,7 @@ class FiLMDenoiser(nn.Module):
         out = torch.empty(len(t), blocks + 1, 2, self.config.hidden, dtype=film.dtype, device=film.device)
         out[:, :blocks, 0] = 1 + film[:, :, 0]
         out[:, :blocks, 1] = film[:, :, 1]
-        out[:, blocks] = 0
+        out[:, blocks].zero_()  # not `= 0`, which makes a tensor of the host scalar first (CUDA-graph capture)
         out[:, blocks, 0, : feature_scale.shape[1]] = feature_scale
         return out
 

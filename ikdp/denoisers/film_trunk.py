@@ -26,9 +26,12 @@ def scale_and_shift(film: torch.Tensor) -> torch.Tensor:
     """The condition network's output (M, blocks, 2, hidden) -> FiLM scales (1 + output) and shifts.
 
     An added constant, not a stack of two slices: in training each slice's backward filled a zero tensor
-    of the condition's full size (a quarter of a CPU training step on the xArm7).
+    of the condition's full size (a quarter of a CPU training step on the xArm7). The constant is filled on
+    the condition's device, not copied from the host: a CUDA graph may capture this.
     """
-    return film + torch.tensor([1.0, 0.0], dtype=film.dtype, device=film.device)[:, None]
+    one_then_zero = torch.zeros((2, 1), dtype=film.dtype, device=film.device)
+    one_then_zero[0].fill_(1.0)  # fill_, not `= 1.0`: that assignment copies a host scalar
+    return film + one_then_zero
 
 
 def film_residual_pass(h: torch.Tensor, rows, norms: nn.ModuleList, blocks: nn.ModuleList):

@@ -1,0 +1,164 @@
+"""GPU: the Panda's K = 16 + refinement for 1000 and 10,000 targets, eager `solve` against its CUDA graph
+(`solver.capture`, ikdp/cuda_graph.py), beside pytorch_kinematics' PseudoInverseIK on the same GPU and in the same
+process (issue 27, deliver 4). A target is solved when one of its poses is within 1 mm and 1 degree.
+
+    python benchmarks/gpu/batch_graph.py PANDA_URDF      # JSON to $OUT/batch_graph.json (else /tmp)
+    python benchmarks/gpu/batch_graph.py PANDA_URDF cpu  # a dry run of the script: every graph row an error
+
+Every row is timed `repeats` times after a warm-up, the median quoted, with a CUDA synchronize inside the timing.
+"""
+
+# ruff: noqa: B023  (each lambda is timed at once, inside its loop turn)
+from __future__ import annotations
+
+import json
+import math
+import os
+import statistics
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import torch
+
+import ikdp
+
+URDF = sys.argv[1] if len(sys.argv) > 1 else ".gpu/panda.urdf"
+DEVICE = sys.argv[2] if len(sys.argv) > 2 else "cuda"
+synchronize = torch.cuda.synchronize if DEVICE == "cuda" else (lambda: None)
+OUT = Path(os.environ.get("OUT", "/tmp")) / "batch_graph.json"
+COUNTS = tuple(int(c) for c in os.environ.get("COUNTS", "1000,10000").split(","))
+SAMPLES = 16
+# (checkpoint, sampler, steps, refine, restart): the CPU's fastest rows, and the teacher rows measured before
+PIPELINES = (
+    ("ikdp_panda_1step", "ddim", 1, 8, 0),
+    ("ikdp_panda_1step", "ddim", 1, 10, 0),
+    ("ikdp_panda_1step", "ddim", 1, 4, 10),
+    ("ikdp_panda_1step", "ddim", 1, 6, 10),
+    ("ikdp_panda_1step", "ddim", 1, 8, 10),
+    ("ikdp_panda", "ddim", 3, 5, 0),
+    ("ikdp_panda", "dpmpp2m", 10, 5, 0),
+)
+PK_SETTINGS = ((16, 30), (16, 20), (8, 30))
+
+results: dict = {
+    "gpu": torch.cuda.get_device_name() if DEVICE == "cuda" else DEVICE,
+    "torch": torch.__version__,
+    "samples": SAMPLES,
+    "rule": "solved: a pose within 1 mm and 1 degree; seconds: median per whole batch",
+    "rows": {},
+}
+
+
+def save() -> None:
+    OUT.write_text(json.dumps(results, indent=1))
+
+
+def timed(run, repeats: int) -> tuple[float, object]:
+    answer = run()
+    synchronize()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        answer = run()
+        synchronize()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), answer
+
+
+def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
+    goals = targets[:, None].expand(-1, joints.shape[1], -1)
+    position, rotation = arm.tip_and_rotation_errors(joints, goals)
+    valid = (position < 1e-3) & (rotation < math.radians(1))
+    return {
+        "success": float(valid.any(1).double().mean()),
+        "valid_per_target": float(valid.sum(1).double().mean()),
+        "limit_violations": int(arm.limit_violations(joints).sum()),
+    }
+
+
+def row(name: str, values: dict) -> None:
+    results["rows"][name] = values
+    save()
+    print(f"{name:58s} {json.dumps(values)}", flush=True)
+
+
+solvers = {name: ikdp.load(name, device=DEVICE) for name in {p[0] for p in PIPELINES}}
+arm = solvers["ikdp_panda"].arm
+all_targets = arm.end_effector(arm.random_poses(max(COUNTS), generator=torch.Generator().manual_seed(0))).to(DEVICE)
+
+# one target, K = 16: the latency a GPU viewer would see
+for name, sampler, steps, refine, restart in PIPELINES[:1]:
+    solver = solvers[name]
+    one = all_targets[:1]
+    options = dict(num_samples=SAMPLES, sampler=sampler, steps=steps, refine_steps=refine, restart_steps=restart)
+    values = {}
+    try:
+        values["eager_ms"] = (
+            1e3 * timed(lambda: solver.solve(one, generator=torch.Generator(DEVICE).manual_seed(0), **options), 15)[0]
+        )
+        captured = solver.capture(1, **options)
+        values["graph_ms"] = 1e3 * timed(lambda: captured(one, seed=0), 15)[0]
+    except Exception:
+        values["error"] = traceback.format_exc()[-1500:]
+    row(f"one target {name} {sampler}:{steps}+{refine}r{restart}", values)
+
+for count in COUNTS:
+    targets = all_targets[:count]
+    for name, sampler, steps, refine, restart in PIPELINES:
+        solver = solvers[name]
+        label = f"{count} x {SAMPLES} {name} {sampler}:{steps}+{refine}" + (f"r{restart}" if restart else "")
+        options = dict(num_samples=SAMPLES, sampler=sampler, steps=steps, refine_steps=refine, restart_steps=restart)
+        values: dict = {}
+        try:
+            seconds, eager = timed(
+                lambda: solver.solve(targets, generator=torch.Generator(DEVICE).manual_seed(2), **options), 5
+            )
+            values["eager_ms"] = seconds * 1e3
+            values["eager"] = verdict(arm, eager.angles, targets)
+            start = time.perf_counter()
+            captured = solver.capture(count, **options)
+            synchronize()
+            values["capture_s"] = time.perf_counter() - start
+            seconds, replayed = timed(lambda: captured(targets, seed=2), 15)
+            values["graph_ms"] = seconds * 1e3
+            values["graph"] = verdict(arm, replayed.angles, targets)
+            values["graph_vs_eager_ms_ratio"] = values["graph_ms"] / values["eager_ms"]
+            if not restart:  # the same seed, the same noise: the graph must give the eager poses
+                values["raw_max_abs_diff_rad"] = float((replayed.raw_angles - eager.raw_angles).abs().max())
+                values["refined_max_abs_diff_rad"] = float((replayed.angles - eager.angles).abs().max())
+            values["network_evaluations"] = replayed.network_evaluations
+            values["peak_memory_gb"] = torch.cuda.max_memory_allocated() / 1e9 if DEVICE == "cuda" else None
+        except Exception:
+            values["error"] = traceback.format_exc()[-1500:]
+        row(label, values)
+        if DEVICE == "cuda":
+            torch.cuda.empty_cache()
+
+    try:
+        import pytorch_kinematics as pk
+
+        chain = pk.build_serial_chain_from_urdf(Path(URDF).read_bytes(), arm.ee_link).to(device=DEVICE)
+        limits = arm.joint_limits.to(DEVICE)
+        goal = pk.Transform3d(pos=targets[:, :3], rot=targets[:, 3:], device=DEVICE)
+        for retries, iterations in PK_SETTINGS:
+            unit = torch.rand(retries, arm.num_joints, generator=torch.Generator().manual_seed(9)).to(DEVICE)
+            ik = pk.PseudoInverseIK(
+                chain,
+                retry_configs=limits[:, 0] + unit * (limits[:, 1] - limits[:, 0]),
+                joint_limits=limits,
+                max_iterations=iterations,
+                pos_tolerance=1e-3,
+                rot_tolerance=math.radians(1),
+                early_stopping_any_converged=True,
+            )
+            seconds, solution = timed(lambda: ik.solve(goal), 5)
+            joints = solution.solutions.detach().float()
+            row(
+                f"{count} x {retries} PseudoInverseIK {retries}x{iterations}",
+                {"ms": seconds * 1e3, **verdict(arm, joints, targets)},
+            )
+    except Exception:
+        row(f"{count} PseudoInverseIK", {"error": traceback.format_exc()[-1500:]})
+print(json.dumps(results), flush=True)
