@@ -75,6 +75,7 @@ class PlanarArm:
             raise ValueError(f"lengths: expected one or more positive bone lengths, got {lengths}")
         self.lengths = lengths
         self._lengths64 = torch.tensor(lengths, dtype=torch.float64)
+        self._lengths_by_device: dict = {}
 
     def __repr__(self) -> str:
         return f"PlanarArm(lengths={self.lengths})"
@@ -113,7 +114,12 @@ class PlanarArm:
         return {"kind": self.kind, "lengths": list(self.lengths)}
 
     def lengths_like(self, tensor: torch.Tensor) -> torch.Tensor:
-        return self._lengths64.to(device=tensor.device, dtype=tensor.dtype)
+        """The bone lengths in `tensor`'s dtype and on its device, copied there once (a CUDA graph's capture
+        may not copy from the host)."""
+        key = (tensor.dtype, tensor.device)
+        if key not in self._lengths_by_device:
+            self._lengths_by_device[key] = self._lengths64.to(device=tensor.device, dtype=tensor.dtype)
+        return self._lengths_by_device[key]
 
     # --- kinematics --------------------------------------------------------------------------
     def forward_kinematics(self, headings: torch.Tensor) -> torch.Tensor:
@@ -147,7 +153,8 @@ class PlanarArm:
         headings (..., N) and targets broadcastable to (..., 2). Float64 because refined poses
         land within 1e-6, where float32's FK would report its own rounding.
         """
-        tip = tip_position(headings.double(), self._lengths64.to(headings.device))
+        headings = headings.double()
+        tip = tip_position(headings, self.lengths_like(headings))
         return (tip - targets.double()).norm(dim=-1).float()
 
     def tip_and_rotation_errors(self, headings: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, None]:

@@ -280,7 +280,7 @@ class ChainArm:
         travel = self._limits[prismatic].abs().amax(dim=-1).sum() if prismatic.any() else 0.0
         return 0.0, float(offsets + travel)
 
-    @property
+    @functools.cached_property
     def span(self) -> float:
         """A length scale: the sum of every offset's length along the chain (the base's included)."""
         return float(self._offsets[:, :3, 3].norm(dim=-1).sum() + self._ee_offset[:3, 3].norm())

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import torch
 
-from ikdp.refine import damped_least_squares
-from ikdp.restarts import restart_unreached
+from ikdp.refine import damped_least_squares, sync_free_iteration
+from ikdp.restarts import restart_every_target, within_tolerances
 from ikdp.samplers import Sampler, make_sampler
 from ikdp.sampling import Trajectory, run_reverse_diffusion, step_conditions
 from ikdp.solver import SolveResult
@@ -114,6 +114,8 @@ class CapturedSolve:
 
     The poses are `solve`'s for the same seed except the restarts: theirs come from every target's fresh
     starts drawn on the GPU (`restart_every_target`), where solve draws only the unreached ones' on the CPU.
+    `fused=True`: each refinement step is compiled first (torch.compile fuses its few hundred small kernels
+    into a few; needs Triton, and the first capture of a shape takes seconds longer).
     """
 
     def __init__(
@@ -127,6 +129,7 @@ class CapturedSolve:
         spacing: str | None = None,
         refine_steps: int = 0,
         restart_steps: int = 0,
+        fused: bool = False,
     ):
         if solver.device.type != "cuda":
             raise ValueError(f"solver: expected one loaded on a CUDA device, got one on {solver.device}")
@@ -136,6 +139,8 @@ class CapturedSolve:
             raise ValueError(f"restart_steps: expected a non-negative integer, got {restart_steps!r}")
         self.solver = solver
         self.options = dict(num_samples=num_samples, refine_steps=refine_steps, restart_steps=restart_steps)
+        if fused:  # compiled once per shape by the warm-up run, before the capture
+            self.options["iteration"] = torch.compile(sync_free_iteration, dynamic=False)
         self.sampler = make_sampler(sampler, solver.model.schedule, steps, spacing)  # its buffers: the graph's
         self.asked = torch.zeros((batch, solver.arm.target_dim), device=solver.device)
         self.generator = torch.Generator(device=solver.device)
@@ -167,9 +172,11 @@ def solve_without_sync(
     refine_steps: int,
     restart_steps: int,
     generator: torch.Generator | None,
+    iteration=None,
 ):
     """`Solver.solve` for validated targets (B, target_dim), without constraints, callbacks or trajectories, and
-    with nothing that waits for the device or sizes a tensor by its data: what a CUDA graph can hold."""
+    with nothing that waits for the device or sizes a tensor by its data: what a CUDA graph can hold.
+    `iteration`: the refinement's step, compiled (CapturedSolve's `fused`); None: sync_free_iteration."""
     arm, model = solver.arm, solver.model
     conditions = arm.clamp_to_workspace(targets)
     result = run_reverse_diffusion(
@@ -184,10 +191,12 @@ def solve_without_sync(
     )
     raw = result.headings
     goals = conditions[:, None].expand(-1, num_samples, -1)
-    angles = damped_least_squares(arm, raw, goals, steps=refine_steps, sync_free=True) if refine_steps else raw
+    refine = dict(sync_free=True, iteration=iteration)
+    angles = damped_least_squares(arm, raw, goals, steps=refine_steps, **refine) if refine_steps else raw
     restarted = None
     if restart_steps:
-        angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator, sync_free=True)
+        restarted = ~within_tolerances(arm, angles, goals).any(dim=-1)
+        angles = restart_every_target(arm, angles, goals, restarted, restart_steps, generator, iteration)
     per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
     error, rotation_error = arm.tip_and_rotation_errors(angles, per_sample_targets)
     return SolveResult(

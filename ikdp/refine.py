@@ -127,6 +127,7 @@ def damped_least_squares(
     max_miss_fraction: float = 0.2,
     task: RefineTask | None = None,
     sync_free: bool = False,
+    iteration=None,
 ) -> torch.Tensor:
     """joints (..., J), targets (..., target_dim) -> refined joints (..., J), within the arm's limits.
 
@@ -137,9 +138,10 @@ def damped_least_squares(
     correct errors near float32's resolution. A `task` replaces the end-effector error and its
     Jacobian (constraints: partial targets, obstacles, locked joints).
 
-    `sync_free`: never ask the device whether a joint is blocked (a host sync, which a CUDA graph cannot
-    capture): every pose's step without its blocked joints is computed and kept only where one was blocked.
-    The same poses as the default, which solves that step for the blocked poses alone (cheaper on a CPU).
+    `sync_free` (no task): never ask the device whether a joint is blocked (a host sync, which a CUDA graph
+    cannot capture): each step is `sync_free_iteration`, or `iteration`, the same function compiled
+    (torch.compile: ikdp/cuda_graph.py's fused capture). The same poses as the default, which solves the step
+    without the blocked joints for the blocked poses alone (cheaper on a CPU).
     """
     if not isinstance(steps, int) or steps < 0:
         raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
@@ -147,6 +149,13 @@ def damped_least_squares(
     joints = joints.double()
     targets = targets.double()
     max_position = max_miss_fraction * arm.span
+    if sync_free:
+        if task is not None:
+            raise ValueError("task: the sync-free refinement (a CUDA graph's) takes none")
+        iteration = sync_free_iteration if iteration is None else iteration
+        for _ in range(steps):
+            joints = iteration(arm, joints, targets, max_position, damping**2)
+        return joints.to(dtype)
     for _ in range(steps):
         penetrations = None
         if task is None:
@@ -158,12 +167,7 @@ def damped_least_squares(
         step = prioritized_step(jacobian, error, penetrations, damping**2)
         moved = arm.normalize_joints(joints + step)
         blocked = arm.blocked_by_limits(joints, step)
-        if blocked is not None and sync_free:
-            held_step = prioritized_step(jacobian, error, penetrations, damping**2, ~blocked)  # blocked: zeroed
-            every_target = targets.expand(*joints.shape[:-1], targets.shape[-1])
-            better = better_of(arm, every_target, moved, arm.normalize_joints(joints + held_step), task)
-            moved = torch.where(blocked.any(dim=-1, keepdim=True), better, moved)
-        elif blocked is not None and bool(blocked.any()):
+        if blocked is not None and bool(blocked.any()):
             if task is None:  # only the poses with a blocked joint try the step without it: a few in a thousand
                 rows = blocked.any(dim=-1)
                 held_step = dls_step(jacobian[rows] * ~blocked[rows][..., None, :], error[rows], damping**2)
@@ -174,6 +178,26 @@ def damped_least_squares(
                 moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
         joints = moved if task is None else task.hold(moved)
     return joints.to(dtype)
+
+
+def sync_free_iteration(
+    arm, joints: torch.Tensor, targets: torch.Tensor, max_position: float, damping_squared: float
+) -> torch.Tensor:
+    """One step of `damped_least_squares` without a task, float64 joints (..., J) -> the next, with nothing that
+    waits for the device or sizes a tensor by its data: every pose's step without its blocked joints is solved
+    too and kept only where a joint was blocked, by the same rule (`better_of`). Fixed shapes and tensor code
+    alone: what a CUDA graph captures and torch.compile fuses."""
+    error, jacobian = arm.task_error_and_jacobian(joints, targets)
+    error = clamp_task_error(error, arm.position_dim, max_position, math.pi / 4)
+    step = dls_step(jacobian, error, damping_squared)
+    moved = arm.normalize_joints(joints + step)
+    blocked = arm.blocked_by_limits(joints, step)
+    if blocked is None:  # a planar arm: no limits
+        return moved
+    held_step = dls_step(jacobian * ~blocked[..., None, :], error, damping_squared)
+    every_target = targets.expand(*joints.shape[:-1], targets.shape[-1])
+    better = better_of(arm, every_target, moved, arm.normalize_joints(joints + held_step))
+    return torch.where(blocked.any(dim=-1, keepdim=True), better, moved)
 
 
 def prioritized_step(

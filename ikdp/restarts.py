@@ -39,7 +39,6 @@ def restart_unreached(
     steps: int,
     generator: torch.Generator | None = None,
     constraints=None,
-    sync_free: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """angles (B, K, J), goals (B, K, target_dim) -> (angles, restarted (B,)).
 
@@ -51,14 +50,8 @@ def restart_unreached(
     `constraints` (a ConstraintSet over the B x K rows): reaching also means meeting them; the fresh poses
     start with the locked joints at their values and are refined by the constrained task (obstacles cleared,
     a partial target's free rows left free), cut to the restarted targets' rows (`ConstraintSet.of_targets`).
-
-    `sync_free` (no constraints): `restart_every_target`, for a CUDA graph.
     """
-    if sync_free and constraints is not None:
-        raise ValueError("constraints: the sync-free restarts (a CUDA graph's) take none")
     restarted = ~within_tolerances(arm, angles, goals, constraints).any(dim=-1)
-    if sync_free and steps:
-        return restart_every_target(arm, angles, goals, restarted, steps, generator), restarted
     if steps == 0 or not bool(restarted.any()):
         return angles, torch.zeros_like(restarted)
     if generator is not None and generator.device.type != "cpu":
@@ -84,14 +77,16 @@ def restart_every_target(
     restarted: torch.Tensor,
     steps: int,
     generator: torch.Generator | None,
+    iteration=None,
 ) -> torch.Tensor:
     """`restart_unreached`'s choice without a host sync or a shape that depends on the data (a CUDA graph's
     needs): every target gets K fresh starts on the poses' device (`arm.random_poses_like`, `generator` on that
     device) and the refinement, and only the `restarted` (B,) ones keep them. It pays for all B targets where
     the default pays for the unreached few: on a GPU the graph's single launch is the cheaper of the two.
+    `iteration`: damped_least_squares' compiled step, if any.
     """
     starts = arm.random_poses_like(angles, generator=generator)
-    fresh = damped_least_squares(arm, starts, goals, steps=steps, sync_free=True)
+    fresh = damped_least_squares(arm, starts, goals, steps=steps, sync_free=True, iteration=iteration)
     kept = better_of(arm, goals, angles, fresh)
     chosen = torch.where(within_tolerances(arm, fresh, goals)[..., None], fresh, kept)
     return torch.where(restarted[:, None, None], chosen, angles)

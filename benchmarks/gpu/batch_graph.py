@@ -30,9 +30,11 @@ synchronize = torch.cuda.synchronize if DEVICE == "cuda" else (lambda: None)
 OUT = Path(os.environ.get("OUT", "/tmp")) / "batch_graph.json"
 COUNTS = tuple(int(c) for c in os.environ.get("COUNTS", "1000,10000").split(","))
 SAMPLES = 16
+SKIP = set(os.environ.get("SKIP", "").split(","))  # pipeline labels "name sampler:steps+refine[rRESTART]" to leave out
 # (checkpoint, sampler, steps, refine, restart): the CPU's fastest rows, and the teacher rows measured before
 PIPELINES = (
     ("ikdp_panda_1step", "ddim", 1, 8, 0),
+    ("ikdp_panda_1step", "ddim", 1, 5, 0),
     ("ikdp_panda_1step", "ddim", 1, 10, 0),
     ("ikdp_panda_1step", "ddim", 1, 4, 10),
     ("ikdp_panda_1step", "ddim", 1, 6, 10),
@@ -40,7 +42,10 @@ PIPELINES = (
     ("ikdp_panda", "ddim", 3, 5, 0),
     ("ikdp_panda", "dpmpp2m", 10, 5, 0),
 )
-PK_SETTINGS = ((16, 30), (16, 20), (8, 30))
+PK_SETTINGS = tuple(
+    tuple(int(n) for n in text.split("x")) for text in os.environ.get("PK", "16x30,16x20,8x30").split(",")
+)
+GRAPHS = tuple(os.environ.get("GRAPHS", "graph,fused").split(","))  # fused: each DLS step torch.compile'd
 
 results: dict = {
     "gpu": torch.cuda.get_device_name() if DEVICE == "cuda" else DEVICE,
@@ -108,26 +113,30 @@ for count in COUNTS:
     targets = all_targets[:count]
     for name, sampler, steps, refine, restart in PIPELINES:
         solver = solvers[name]
-        label = f"{count} x {SAMPLES} {name} {sampler}:{steps}+{refine}" + (f"r{restart}" if restart else "")
+        pipeline = f"{name} {sampler}:{steps}+{refine}" + (f"r{restart}" if restart else "")
+        if pipeline in SKIP:
+            continue
+        label = f"{count} x {SAMPLES} {pipeline}"
         options = dict(num_samples=SAMPLES, sampler=sampler, steps=steps, refine_steps=refine, restart_steps=restart)
         values: dict = {}
         try:
             seconds, eager = timed(
-                lambda: solver.solve(targets, generator=torch.Generator(DEVICE).manual_seed(2), **options), 5
+                lambda: solver.solve(targets, generator=torch.Generator(DEVICE).manual_seed(2), **options), 3
             )
             values["eager_ms"] = seconds * 1e3
             values["eager"] = verdict(arm, eager.angles, targets)
-            start = time.perf_counter()
-            captured = solver.capture(count, **options)
-            synchronize()
-            values["capture_s"] = time.perf_counter() - start
-            seconds, replayed = timed(lambda: captured(targets, seed=2), 15)
-            values["graph_ms"] = seconds * 1e3
-            values["graph"] = verdict(arm, replayed.angles, targets)
-            values["graph_vs_eager_ms_ratio"] = values["graph_ms"] / values["eager_ms"]
-            if not restart:  # the same seed, the same noise: the graph must give the eager poses
-                values["raw_max_abs_diff_rad"] = float((replayed.raw_angles - eager.raw_angles).abs().max())
-                values["refined_max_abs_diff_rad"] = float((replayed.angles - eager.angles).abs().max())
+            for kind in GRAPHS:
+                start = time.perf_counter()
+                captured = solver.capture(count, fused=kind == "fused", **options)
+                synchronize()
+                values[f"{kind}_capture_s"] = time.perf_counter() - start
+                seconds, replayed = timed(lambda: captured(targets, seed=2), 15)
+                values[f"{kind}_ms"] = seconds * 1e3
+                values[kind] = verdict(arm, replayed.angles, targets)
+                if not restart:  # the same seed, the same noise: the graph must give the eager poses
+                    values[f"{kind}_raw_max_abs_diff_rad"] = float((replayed.raw_angles - eager.raw_angles).abs().max())
+                    values[f"{kind}_max_abs_diff_rad"] = float((replayed.angles - eager.angles).abs().max())
+                row(label, values)
             values["network_evaluations"] = replayed.network_evaluations
             values["peak_memory_gb"] = torch.cuda.max_memory_allocated() / 1e9 if DEVICE == "cuda" else None
         except Exception:
