@@ -114,8 +114,9 @@ class CapturedSolve:
 
     The poses are `solve`'s for the same seed except the restarts: theirs come from every target's fresh
     starts drawn on the GPU (`restart_every_target`), where solve draws only the unreached ones' on the CPU.
-    `fused=True`: each refinement step is compiled first (torch.compile fuses its few hundred small kernels
-    into a few; needs Triton, and the first capture of a shape takes seconds longer).
+    `fused=True`: each refinement step and the error check (a float64 kinematics pass) are compiled first
+    (torch.compile fuses their hundreds of small kernels into a few; needs Triton, and the first capture of a
+    shape takes seconds longer).
     """
 
     def __init__(
@@ -141,6 +142,7 @@ class CapturedSolve:
         self.options = dict(num_samples=num_samples, refine_steps=refine_steps, restart_steps=restart_steps)
         if fused:  # compiled once per shape by the warm-up run, before the capture
             self.options["iteration"] = torch.compile(sync_free_iteration, dynamic=False)
+            self.options["errors"] = torch.compile(solver.arm.tip_and_rotation_errors, dynamic=False)
         self.sampler = make_sampler(sampler, solver.model.schedule, steps, spacing)  # its buffers: the graph's
         self.asked = torch.zeros((batch, solver.arm.target_dim), device=solver.device)
         self.generator = torch.Generator(device=solver.device)
@@ -173,10 +175,12 @@ def solve_without_sync(
     restart_steps: int,
     generator: torch.Generator | None,
     iteration=None,
+    errors=None,
 ):
     """`Solver.solve` for validated targets (B, target_dim), without constraints, callbacks or trajectories, and
     with nothing that waits for the device or sizes a tensor by its data: what a CUDA graph can hold.
-    `iteration`: the refinement's step, compiled (CapturedSolve's `fused`); None: sync_free_iteration."""
+    `iteration`, `errors`: the refinement's step and `arm.tip_and_rotation_errors`, compiled (CapturedSolve's
+    `fused`); None: sync_free_iteration and the arm's method."""
     arm, model = solver.arm, solver.model
     conditions = arm.clamp_to_workspace(targets)
     result = run_reverse_diffusion(
@@ -195,10 +199,11 @@ def solve_without_sync(
     angles = damped_least_squares(arm, raw, goals, steps=refine_steps, **refine) if refine_steps else raw
     restarted = None
     if restart_steps:
-        restarted = ~within_tolerances(arm, angles, goals).any(dim=-1)
-        angles = restart_every_target(arm, angles, goals, restarted, restart_steps, generator, iteration)
+        restarted = ~within_tolerances(arm, angles, goals, errors=errors).any(dim=-1)
+        angles = restart_every_target(arm, angles, goals, restarted, restart_steps, generator, iteration, errors)
     per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
-    error, rotation_error = arm.tip_and_rotation_errors(angles, per_sample_targets)
+    errors = arm.tip_and_rotation_errors if errors is None else errors
+    error, rotation_error = errors(angles, per_sample_targets)
     return SolveResult(
         angles=angles,
         tip_error=error,
@@ -206,7 +211,7 @@ def solve_without_sync(
         timesteps=result.timesteps,
         reachable=arm.is_reachable(targets),
         raw_angles=raw,
-        raw_tip_error=error if angles is raw else arm.tip_error(raw, per_sample_targets),
+        raw_tip_error=error if angles is raw else errors(raw, per_sample_targets)[0],
         rotation_error=rotation_error,
         network_evaluations=result.network_evaluations,
         restarted=restarted,

@@ -13,14 +13,15 @@ import torch
 from ikdp.refine import better_of, damped_least_squares
 
 
-def within_tolerances(arm, joints: torch.Tensor, goals: torch.Tensor, constraints=None) -> torch.Tensor:
+def within_tolerances(arm, joints: torch.Tensor, goals: torch.Tensor, constraints=None, errors=None) -> torch.Tensor:
     """joints (..., J), goals (..., target_dim) -> (...) True where the tip is within `arm.position_tolerance`
     of the goal (and, for pose targets, its orientation within `arm.rotation_tolerance`).
 
     `constraints` (a ConstraintSet over the same B x K rows): a partial target's rotation error replaces the
     full one (none for position only), and every constraint must hold (violation 0, as tracking checks).
+    `errors`: `arm.tip_and_rotation_errors` compiled (ikdp/cuda_graph.py's fused capture); None: the method.
     """
-    position, rotation = arm.tip_and_rotation_errors(joints, goals)
+    position, rotation = (arm.tip_and_rotation_errors if errors is None else errors)(joints, goals)
     within = position < arm.position_tolerance
     partial = None if constraints is None else constraints.partial
     if partial is not None:
@@ -78,15 +79,16 @@ def restart_every_target(
     steps: int,
     generator: torch.Generator | None,
     iteration=None,
+    errors=None,
 ) -> torch.Tensor:
     """`restart_unreached`'s choice without a host sync or a shape that depends on the data (a CUDA graph's
     needs): every target gets K fresh starts on the poses' device (`arm.random_poses_like`, `generator` on that
     device) and the refinement, and only the `restarted` (B,) ones keep them. It pays for all B targets where
     the default pays for the unreached few: on a GPU the graph's single launch is the cheaper of the two.
-    `iteration`: damped_least_squares' compiled step, if any.
+    `iteration`, `errors`: damped_least_squares' step and the arm's error check, compiled, if any.
     """
     starts = arm.random_poses_like(angles, generator=generator)
     fresh = damped_least_squares(arm, starts, goals, steps=steps, sync_free=True, iteration=iteration)
     kept = better_of(arm, goals, angles, fresh)
-    chosen = torch.where(within_tolerances(arm, fresh, goals)[..., None], fresh, kept)
+    chosen = torch.where(within_tolerances(arm, fresh, goals, errors=errors)[..., None], fresh, kept)
     return torch.where(restarted[:, None, None], chosen, angles)

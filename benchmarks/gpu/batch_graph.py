@@ -43,7 +43,7 @@ PIPELINES = (
     ("ikdp_panda", "dpmpp2m", 10, 5, 0),
 )
 PK_SETTINGS = tuple(
-    tuple(int(n) for n in text.split("x")) for text in os.environ.get("PK", "16x30,16x20,8x30").split(",")
+    tuple(int(n) for n in text.split("x")) for text in os.environ.get("PK", "16x30,16x20,8x30").split(",") if text
 )
 GRAPHS = tuple(os.environ.get("GRAPHS", "graph,fused").split(","))  # fused: each DLS step torch.compile'd
 
@@ -171,3 +171,28 @@ for count in COUNTS:
     except Exception:
         row(f"{count} PseudoInverseIK", {"error": traceback.format_exc()[-1500:]})
 print(json.dumps(results), flush=True)
+
+if os.environ.get("PROFILE"):  # where a fused solve's GPU time goes, kernel by kernel (the eager body, compiled parts)
+    from ikdp.cuda_graph import solve_without_sync
+    from ikdp.refine import sync_free_iteration
+    from ikdp.samplers import make_sampler
+
+    name, sampler, steps, refine, restart = PIPELINES[3]
+    solver = solvers[name]
+    targets = all_targets[: COUNTS[0]]
+    fused = dict(
+        iteration=torch.compile(sync_free_iteration, dynamic=False),
+        errors=torch.compile(solver.arm.tip_and_rotation_errors, dynamic=False),
+    )
+    loop = make_sampler(sampler, solver.model.schedule, steps, solver.default_spacing(sampler, steps))
+    body = dict(num_samples=SAMPLES, refine_steps=refine, restart_steps=restart, **fused)
+    for _ in range(2):
+        solve_without_sync(solver, loop, targets, generator=torch.Generator(DEVICE).manual_seed(0), **body)
+    synchronize()
+    activity = torch.profiler.ProfilerActivity.CUDA if DEVICE == "cuda" else torch.profiler.ProfilerActivity.CPU
+    with torch.profiler.profile(activities=[activity]) as profile:
+        solve_without_sync(solver, loop, targets, generator=torch.Generator(DEVICE).manual_seed(0), **body)
+        synchronize()
+    table = profile.key_averages().table(sort_by=f"{DEVICE}_time_total", row_limit=25, max_name_column_width=70)
+    (OUT.parent / "profile.txt").write_text(table)
+    print(table, flush=True)
