@@ -23,7 +23,7 @@ from ikdp.refine import damped_least_squares, sync_free_iteration
 from ikdp.restarts import restart_every_target, within_tolerances
 from ikdp.samplers import Sampler, make_sampler
 from ikdp.sampling import Trajectory, run_reverse_diffusion, step_conditions
-from ikdp.solver import SolveResult
+from ikdp.solver import SolveResult, is_integer
 
 
 def capture(run, generator: torch.Generator):
@@ -132,12 +132,16 @@ class CapturedSolve:
         restart_steps: int = 0,
         fused: bool = False,
     ):
-        if solver.device.type != "cuda":
-            raise ValueError(f"solver: expected one loaded on a CUDA device, got one on {solver.device}")
+        if not is_integer(batch) or batch < 1:
+            raise ValueError(
+                f"batch: expected a positive integer (the number of targets a replay takes), got {batch!r}"
+            )
         spacing = solver.default_spacing(sampler, steps) if spacing is None else spacing
         solver.check_options(batch, num_samples, sampler, steps, spacing, refine_steps, None, None)
-        if not isinstance(restart_steps, int) or restart_steps < 0:
+        if not is_integer(restart_steps) or restart_steps < 0:
             raise ValueError(f"restart_steps: expected a non-negative integer, got {restart_steps!r}")
+        if solver.device.type != "cuda":
+            raise ValueError(f"solver: expected one loaded on a CUDA device, got one on {solver.device}")
         self.solver = solver
         self.options = dict(num_samples=num_samples, refine_steps=refine_steps, restart_steps=restart_steps)
         if fused:  # compiled once per shape by the warm-up run, before the capture

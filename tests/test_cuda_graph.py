@@ -181,6 +181,21 @@ def test_capture_refuses_a_cpu_solver():
         ikdp.load("ikdp_n4").capture(4)
 
 
+@pytest.mark.parametrize(
+    "batch, options, message",
+    [
+        (0, {}, "batch: expected a positive integer"),
+        (2.5, {}, "batch: expected a positive integer"),
+        (4, {"restart_steps": True}, "restart_steps: expected a non-negative integer"),
+        (4, {"sampler": "euler"}, "sampler: expected one of"),
+        (4, {"refine_steps": -1}, "refine_steps: expected a non-negative integer"),
+    ],
+)
+def test_capture_names_a_bad_option_before_anything_else(batch, options, message):
+    with pytest.raises(ValueError, match=message):
+        ikdp.load("ikdp_n4").capture(batch, **options)
+
+
 @needs_cuda
 @pytest.mark.parametrize("name, sampler, steps", [("ikdp_panda_1step", "ddim", 1), ("ikdp_n4", "dpmpp2m", 10)])
 def test_the_captured_solve_replays_the_eager_solve(name, sampler, steps):
