@@ -17,6 +17,8 @@ every shape fixed, so it runs eagerly on a CPU too (tests/test_cuda_graph.py che
 
 from __future__ import annotations
 
+import importlib.util
+
 import torch
 
 from ikdp.refine import damped_least_squares, sync_free_iteration
@@ -140,6 +142,8 @@ class CapturedSolve:
         solver.check_options(batch, num_samples, sampler, steps, spacing, refine_steps, None, None)
         if not is_integer(restart_steps) or restart_steps < 0:
             raise ValueError(f"restart_steps: expected a non-negative integer, got {restart_steps!r}")
+        if fused and importlib.util.find_spec("triton") is None:
+            raise ValueError("fused: torch.compile needs Triton on a GPU, which is not installed; capture unfused")
         if solver.device.type != "cuda":
             raise ValueError(f"solver: expected one loaded on a CUDA device, got one on {solver.device}")
         self.solver = solver

@@ -181,6 +181,17 @@ def test_capture_refuses_a_cpu_solver():
         ikdp.load("ikdp_n4").capture(4)
 
 
+def test_fused_capture_without_triton_says_so(monkeypatch):
+    import importlib.util
+
+    found = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *rest: None if name == "triton" else found(name, *rest)
+    )
+    with pytest.raises(ValueError, match="fused: torch.compile needs Triton on a GPU, which is not installed"):
+        ikdp.load("ikdp_n4").capture(4, fused=True)
+
+
 @pytest.mark.parametrize(
     "batch, options, message",
     [
