@@ -65,9 +65,8 @@ def restart_unreached(
         starts = subset.hold(starts)
     row_goals = goals[restarted]
     fresh = damped_least_squares(arm, starts, row_goals, steps=steps, task=task)
-    kept = better_of(arm, row_goals, angles[restarted], fresh, task=task)
     angles = angles.clone()
-    angles[restarted] = torch.where(within_tolerances(arm, fresh, row_goals, subset)[..., None], fresh, kept)
+    angles[restarted] = fresh_or_nearer(arm, angles[restarted], fresh, row_goals, constraints=subset, task=task)
     return angles, restarted
 
 
@@ -89,6 +88,11 @@ def restart_every_target(
     """
     starts = arm.random_poses_like(angles, generator=generator)
     fresh = damped_least_squares(arm, starts, goals, steps=steps, sync_free=True, iteration=iteration)
-    kept = better_of(arm, goals, angles, fresh)
-    chosen = torch.where(within_tolerances(arm, fresh, goals, errors=errors)[..., None], fresh, kept)
-    return torch.where(restarted[:, None, None], chosen, angles)
+    return torch.where(restarted[:, None, None], fresh_or_nearer(arm, angles, fresh, goals, errors=errors), angles)
+
+
+def fresh_or_nearer(arm, old, fresh, goals, *, constraints=None, task=None, errors=None) -> torch.Tensor:
+    """Per pose (..., J): the fresh one where it is `within_tolerances` (and meets the constraints), else the one
+    of the two nearer the goal (`better_of`, by the refinement's own task error): the restarts' choice."""
+    kept = better_of(arm, goals, old, fresh, task=task)
+    return torch.where(within_tolerances(arm, fresh, goals, constraints, errors)[..., None], fresh, kept)
