@@ -85,7 +85,8 @@ class HostSyncRecorder(TorchDispatchMode):
         return func(*args, **(kwargs or {}))
 
 
-def panda_targets(solver, count, seed):
+def reachable_targets(solver, count, seed):
+    """`count` targets the solver's arm reaches: the end effector at poses drawn from its joint ranges."""
     return solver.arm.end_effector(solver.arm.random_poses(count, generator=torch.Generator().manual_seed(seed)))
 
 
@@ -97,7 +98,7 @@ def test_the_captured_solve_asks_the_device_nothing(name, sampler, steps, restar
     """What `capture` records must not sync: run on a CPU under a recorder, after a warm-up as capture does."""
     solver = ikdp.load(name)
     loop = make_sampler(sampler, solver.model.schedule, steps, solver.default_spacing(sampler, steps))
-    targets = panda_targets(solver, 20, 0)
+    targets = reachable_targets(solver, 20, 0)
     generator = torch.Generator().manual_seed(0)
     options = dict(num_samples=4, refine_steps=3, restart_steps=restart_steps, generator=generator)
     solve_without_sync(solver, loop, targets, **options)  # warm-up: the per-device constants
@@ -113,7 +114,7 @@ def test_the_captured_solve_asks_the_device_nothing(name, sampler, steps, restar
 def test_the_captured_solve_gives_solves_poses():
     """Same seed, same poses as `solve` on this CPU (no restarts: theirs are drawn differently)."""
     solver = ikdp.load("ikdp_panda_1step")
-    targets = panda_targets(solver, 30, 1)
+    targets = reachable_targets(solver, 30, 1)
     sampler = make_sampler("ddim", solver.model.schedule, 1, "quadratic")
     generator = torch.Generator().manual_seed(4)
     body = solve_without_sync(
@@ -139,7 +140,7 @@ def test_sync_free_refinement_moves_blocked_poses_as_the_default_does():
     poses = arm.random_poses(400, generator=torch.Generator().manual_seed(2))
     poses[::2, 3] = limits[3, 1]  # half of them on joint 4's upper limit, some will be pushed on past it
     poses[::3, 5] = limits[5, 0]
-    goals = panda_targets(solver, 400, 3)
+    goals = reachable_targets(solver, 400, 3)
     default = damped_least_squares(arm, poses, goals, steps=4)
     dense = damped_least_squares(arm, poses, goals, steps=4, sync_free=True)
     error, jacobian = arm.task_error_and_jacobian(poses.double(), goals.double())
@@ -151,7 +152,7 @@ def test_sync_free_refinement_moves_blocked_poses_as_the_default_does():
 def test_restarting_every_target_keeps_the_reached_and_restarts_the_rest():
     solver = ikdp.load("ikdp_panda")
     arm = solver.arm
-    targets = panda_targets(solver, 12, 5)
+    targets = reachable_targets(solver, 12, 5)
     reached = solver.solve(
         targets, num_samples=4, sampler="ddpm", refine_steps=10, generator=torch.Generator().manual_seed(0)
     )
@@ -211,7 +212,7 @@ def test_capture_names_a_bad_option_before_anything_else(batch, options, message
 @pytest.mark.parametrize("name, sampler, steps", [("ikdp_panda_1step", "ddim", 1), ("ikdp_n4", "dpmpp2m", 10)])
 def test_the_captured_solve_replays_the_eager_solve(name, sampler, steps):
     solver = ikdp.load(name, device="cuda")
-    targets = panda_targets(solver, 64, 6).cuda()
+    targets = reachable_targets(solver, 64, 6).cuda()
     captured = solver.capture(64, num_samples=16, sampler=sampler, steps=steps, refine_steps=5)
     for seed in (0, 9):
         eager = solver.solve(
