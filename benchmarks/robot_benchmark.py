@@ -87,7 +87,9 @@ def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
     if arm.target_dim == 7:
         valid &= arm.rotation_error(joints, goals) < math.radians(1)
     pairwise = torch.cdist(joints.double(), joints.double())  # (B, K, K)
-    pair_valid = valid[:, :, None] & valid[:, None, :] & ~torch.eye(joints.shape[1], dtype=torch.bool)
+    pair_valid = (
+        valid[:, :, None] & valid[:, None, :] & ~torch.eye(joints.shape[1], dtype=torch.bool, device=valid.device)
+    )
     per_target = (pairwise * pair_valid).sum((1, 2)) / pair_valid.sum((1, 2)).clamp(min=1)
     several = pair_valid.sum((1, 2)) > 0
     return {

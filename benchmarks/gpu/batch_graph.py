@@ -2,10 +2,11 @@
 (`solver.capture`, ikdp/cuda_graph.py), beside pytorch_kinematics' PseudoInverseIK on the same GPU and in the same
 process (issue 27, deliver 4). A target is solved when one of its poses is within 1 mm and 1 degree.
 
-    python benchmarks/gpu/batch_graph.py PANDA_URDF      # JSON to $OUT/batch_graph.json (else /tmp)
-    python benchmarks/gpu/batch_graph.py PANDA_URDF cpu  # a dry run of the script: every graph row an error
+    python -m benchmarks.gpu.batch_graph PANDA_URDF      # JSON to $OUT/batch_graph.json (else /tmp)
+    python -m benchmarks.gpu.batch_graph PANDA_URDF cpu  # a dry run of the script: every graph row an error
 
-Every row is timed `repeats` times after a warm-up, the median quoted, with a CUDA synchronize inside the timing.
+Every row is timed `repeats` times after a warm-up, the median quoted, with a CUDA synchronize inside the timing;
+poses are judged by robot_benchmark's own `verdict`, the rule of the CPU rows.
 """
 
 # ruff: noqa: B023  (each lambda is timed at once, inside its loop turn)
@@ -14,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import statistics
 import sys
 import time
 import traceback
@@ -23,6 +23,7 @@ from pathlib import Path
 import torch
 
 import ikdp
+from benchmarks.robot_benchmark import median_seconds, verdict
 
 URDF = sys.argv[1] if len(sys.argv) > 1 else ".gpu/panda.urdf"
 DEVICE = sys.argv[2] if len(sys.argv) > 2 else "cuda"
@@ -61,26 +62,15 @@ def save() -> None:
 
 
 def timed(run, repeats: int) -> tuple[float, object]:
-    answer = run()
-    synchronize()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
+    """robot_benchmark's median of `repeats` runs, after a warm-up, each run waited for on the GPU."""
+
+    def synced():
         answer = run()
         synchronize()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), answer
+        return answer
 
-
-def verdict(arm, joints: torch.Tensor, targets: torch.Tensor) -> dict:
-    goals = targets[:, None].expand(-1, joints.shape[1], -1)
-    position, rotation = arm.tip_and_rotation_errors(joints, goals)
-    valid = (position < 1e-3) & (rotation < math.radians(1))
-    return {
-        "success": float(valid.any(1).double().mean()),
-        "valid_per_target": float(valid.sum(1).double().mean()),
-        "limit_violations": int(arm.limit_violations(joints).sum()),
-    }
+    synced()
+    return median_seconds(synced, repeats)
 
 
 def row(name: str, values: dict) -> None:
