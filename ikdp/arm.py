@@ -27,14 +27,23 @@ from ikdp.kinematics import (
 
 
 def uniform_angles(
-    shape: tuple[int, ...], *, generator: torch.Generator | None = None, like: torch.Tensor | None = None
+    shape: tuple[int, ...],
+    *,
+    generator: torch.Generator | None = None,
+    like: torch.Tensor | None = None,
+    device: torch.device | None = None,
 ) -> torch.Tensor:
     """Angles uniform on [-pi, pi), any shape: the draw of random headings and random restarts.
 
-    `like`: drawn on its device and in its dtype (then `generator` must live on that device).
+    `like`: drawn on its device and in its dtype; else on `device` (default: the CPU). `generator` lives there.
     """
-    where = {} if like is None else {"device": like.device, "dtype": like.dtype}
+    where = {"device": device} if like is None else {"device": like.device, "dtype": like.dtype}
     return (torch.rand(shape, generator=generator, **where) * 2 - 1) * math.pi
+
+
+def drawing_device(generator: torch.Generator | None) -> torch.device:
+    """Where a draw from `generator` is made: its own device (a training's data on its GPU), else the CPU."""
+    return generator.device if generator is not None else torch.device("cpu")
 
 
 def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
@@ -190,8 +199,8 @@ class PlanarArm:
 
     # --- poses -------------------------------------------------------------------------------
     def random_poses(self, count: int, *, generator: torch.Generator | None = None) -> torch.Tensor:
-        """`count` poses with every heading uniform on the circle, (count, N)."""
-        return uniform_angles((count, self.num_joints), generator=generator)
+        """`count` poses with every heading uniform on the circle, (count, N), on the generator's device."""
+        return uniform_angles((count, self.num_joints), generator=generator, device=drawing_device(generator))
 
     def random_poses_like(self, like: torch.Tensor, *, generator: torch.Generator | None = None) -> torch.Tensor:
         """Poses shaped like `like` (..., N), on its device, from a generator there: no host copy (CUDA graphs)."""

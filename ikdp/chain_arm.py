@@ -25,7 +25,7 @@ from pathlib import Path
 
 import torch
 
-from ikdp.arm import validate_target_rows
+from ikdp.arm import drawing_device, validate_target_rows
 from ikdp.kinematics import wrap_angle
 from ikdp.robot_data import installed_copy
 from ikdp.rotations import (
@@ -561,11 +561,12 @@ class ChainArm:
 
     # --- poses ---------------------------------------------------------------------------------
     def random_poses(self, count: int, *, generator: torch.Generator | None = None) -> torch.Tensor:
-        """`count` poses with every joint uniform within its limits, (count, J), float32."""
+        """`count` poses with every joint uniform within its limits, (count, J), float32, on the generator's
+        device (a training's data made on its GPU: no host copy)."""
         if count < 0:
             raise ValueError(f"count: expected a number of poses >= 0, got {count}")
-        limits = self.joint_limits
-        unit = torch.rand((count, self.num_joints), generator=generator)
+        unit = torch.rand((count, self.num_joints), generator=generator, device=drawing_device(generator))
+        limits = self._constants_like(unit)["limits"]
         return limits[:, 0] + unit * (limits[:, 1] - limits[:, 0])
 
     def random_poses_like(self, like: torch.Tensor, *, generator: torch.Generator | None = None) -> torch.Tensor:

@@ -103,12 +103,15 @@ class IKDiffusion(nn.Module):
         arm = self.arm
         targets = arm.end_effector(joints)  # (B, target_dim)
         clean = self.representation.encode(joints)  # (B, D)
-        t = torch.randint(self.schedule.num_timesteps, (batch,), generator=generator).to(device)
-        noise = torch.randn(clean.shape, generator=generator).to(device)
-        noisy = self.schedule.add_noise(clean, noise, t)
+        # drawn where the generator lives (the poses' device when training makes its data there), and nothing
+        # read back: a GPU training step is captured whole as a CUDA graph (ikdp/train_steps.py)
+        drawn_on = generator.device if generator is not None else device
+        t = torch.randint(self.schedule.num_timesteps, (batch,), generator=generator, device=drawn_on).to(device)
+        noise = torch.randn(clean.shape, generator=generator, device=drawn_on).to(device)
+        noisy = self.schedule.mix(clean, noise, t)
         output = self.denoiser(noisy, t, targets)
-        alpha = self.schedule.sqrt_alphas_cumprod.to(device)[t, None]
-        sigma = self.schedule.sqrt_one_minus_alphas_cumprod.to(device)[t, None]
+        signal, spread = self.schedule.levels_on(device)
+        alpha, sigma = signal[t, None], spread[t, None]
         if self.config.prediction == "sample":
             squared_error = (output - clean) ** 2
             predicted_clean = output

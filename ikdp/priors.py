@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from ikdp.arm import uniform_angles
+from ikdp.arm import drawing_device, uniform_angles
 from ikdp.kinematics import relative_to_absolute
 
 PRIOR_KINDS = ("uniform", "relaxed", "file")
@@ -28,6 +28,7 @@ class PosePrior:
     relaxed_std: float = math.pi / 4  # std of each relative joint angle for `relaxed`
     poses: torch.Tensor | None = None  # (P, N) relative joint angles for `file`
     source: str = ""  # where `file` poses came from
+    _copies: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # poses_on's, per device
 
     def __post_init__(self):
         if self.kind not in PRIOR_KINDS:
@@ -48,16 +49,23 @@ class PosePrior:
                 raise ValueError(f"prior {self.kind!r}: defined for planar arms only, got a {arm.kind} arm")
             arm = arm.num_joints
         num_links = arm
+        device = drawing_device(generator)  # a training's data is drawn on its GPU: nothing copied per batch
         if self.kind == "uniform":
-            return uniform_angles((count, num_links), generator=generator)
+            return uniform_angles((count, num_links), generator=generator, device=device)
         if self.kind == "relaxed":
-            base = uniform_angles((count, 1), generator=generator)
-            bends = torch.randn(count, num_links - 1, generator=generator) * self.relaxed_std
+            base = uniform_angles((count, 1), generator=generator, device=device)
+            bends = torch.randn(count, num_links - 1, generator=generator, device=device) * self.relaxed_std
             return relative_to_absolute(torch.cat((base, bends), dim=-1))
         if self.poses.shape[1] != num_links:
             raise ValueError(f"prior: file poses have {self.poses.shape[1]} joints, the arm has {num_links}")
-        rows = torch.randint(len(self.poses), (count,), generator=generator)
-        return relative_to_absolute(self.poses[rows])
+        rows = torch.randint(len(self.poses), (count,), generator=generator, device=device)
+        return relative_to_absolute(self.poses_on(device)[rows])
+
+    def poses_on(self, device: torch.device) -> torch.Tensor:
+        """The file's poses on `device`, copied there once."""
+        if device not in self._copies:
+            self._copies[device] = self.poses.to(device)
+        return self._copies[device]
 
     def to_config(self) -> dict:
         """Plain values and tensors only, for a checkpoint."""

@@ -87,6 +87,7 @@ class DiffusionSchedule:
         self.posterior_variance = as32(posterior_variance)
         self.posterior_mean_coef_clean = as32(betas * alphas_cumprod_prev.sqrt() / (1 - alphas_cumprod))
         self.posterior_mean_coef_noisy = as32((1 - alphas_cumprod_prev) * alphas.sqrt() / (1 - alphas_cumprod))
+        self._levels: dict[torch.device, tuple[torch.Tensor, torch.Tensor]] = {}  # levels_on's copies
         # Python floats for the sampling loop: indexing a tensor per step costs more than the step's arithmetic.
         self.floats = {
             name: getattr(self, name).tolist()
@@ -104,11 +105,20 @@ class DiffusionSchedule:
         """Forward process q(x_t | x_0) = sqrt(abar_t) x_0 + sqrt(1 - abar_t) eps.  clean, noise: (B, D); t: (B,)."""
         if t.min() < 0 or t.max() >= self.num_timesteps:
             raise ValueError(f"timestep: expected values in [0, {self.num_timesteps}), got [{t.min()}, {t.max()}]")
-        t = t.to(self.sqrt_alphas_cumprod.device)
-        return (
-            self.sqrt_alphas_cumprod[t, None].to(clean) * clean
-            + self.sqrt_one_minus_alphas_cumprod[t, None].to(clean) * noise
-        )
+        return self.mix(clean, noise, t.to(clean.device))
+
+    def mix(self, clean: torch.Tensor, noise: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        """`add_noise` for timesteps already on `clean`'s device and in range: it asks the device nothing (the range
+        check reads t back), so a training step on a GPU captures it (ikdp/train_steps.py)."""
+        signal, spread = self.levels_on(clean.device)
+        return signal[t, None].to(clean) * clean + spread[t, None].to(clean) * noise
+
+    def levels_on(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+        """(sqrt(abar_t), sqrt(1 - abar_t)) of every step, (T,) each, on `device`: copied there once, not per step."""
+        device = torch.device(device)
+        if device not in self._levels:
+            self._levels[device] = (self.sqrt_alphas_cumprod.to(device), self.sqrt_one_minus_alphas_cumprod.to(device))
+        return self._levels[device]
 
     def noise_levels(self) -> torch.Tensor:
         """sigma_t = sqrt((1 - abar_t) / abar_t) of every step, (T,): the noise of x_t / sqrt(abar_t)."""

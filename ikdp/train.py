@@ -31,7 +31,6 @@ from typing import Literal
 import torch
 import torch.distributed as dist
 
-from ikdp.arm import PlanarArm
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.denoisers import DenoiserConfig
 from ikdp.device import checked_device
@@ -42,6 +41,7 @@ from ikdp.solver import model_from_checkpoint, weight_differences
 from ikdp.train_budget import TrainingBudget
 from ikdp.train_progress import TrainingProgress, accuracy_text
 from ikdp.train_recipes import RECIPE_FIELDS, Recipe, recipe_for, recipes_help
+from ikdp.train_steps import EagerSteps, GraphedSteps, plain_optimizer_state
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,7 @@ class TrainConfig:
     warmup: int | None = None  # linear warmup steps
     seed: int = 0  # seeds the weights and the data stream (process r draws from seed + r)
     device: str = "cpu"  # cpu, cuda, cuda:1, ...; under torchrun, cuda means each process's own GPU
+    graph: bool = False  # with --device cuda: each step replayed from one CUDA graph (one process; train_steps.py)
     threads: int = 0  # torch CPU threads; 0 leaves torch's default
     output: str = "checkpoints/model.pt"  # checkpoint path
     log_dir: str = ""  # TensorBoard folder; empty: <output folder>/logs/<output stem>
@@ -225,6 +226,10 @@ def validate(config: TrainConfig) -> None:
     if config.dls_skip and config.prediction != "sample":
         raise ValueError("dls_skip: adds a step to the estimate of x_0, so it needs --prediction sample")
     checked_device(config.device)
+    if config.graph and torch.device(config.device).type != "cuda":
+        raise ValueError(f"graph: --graph records each step as a CUDA graph, on --device cuda, got {config.device!r}")
+    if config.graph and int(os.environ.get("WORLD_SIZE", "1")) > 1:
+        raise ValueError("graph: --graph trains in one process; under torchrun leave it out")
     if Path(config.output).is_dir():
         raise ValueError(f"output: {config.output!r} is a folder, expected the path of a checkpoint file")
     # checked now, not at the first save: a run that cannot save its checkpoint loses all its training
@@ -317,31 +322,6 @@ class TrainingLoss(torch.nn.Module):
         )
 
 
-def draw_batch(
-    prior: PosePrior, arm: PlanarArm, batch: int, generator: torch.Generator, device: torch.device
-) -> torch.Tensor:
-    """One batch of ground-truth poses from the prior: (batch, N) absolute headings."""
-    return prior.sample(batch, arm, generator=generator).to(device)
-
-
-def training_step(
-    loss: torch.nn.Module,
-    headings: torch.Tensor,
-    generator: torch.Generator,
-    optimizer: torch.optim.Optimizer,
-    lr: float,
-) -> dict[str, torch.Tensor]:
-    """One optimizer step at rate `lr` on `headings`; under DDP the backward pass averages the gradients."""
-    for group in optimizer.param_groups:
-        group["lr"] = lr
-    losses = loss(headings, generator)
-    optimizer.zero_grad(set_to_none=True)
-    losses["loss"].backward()
-    torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
-    optimizer.step()
-    return losses
-
-
 def gather_data_states(data_generator: torch.Generator, processes: Distributed) -> list[torch.Tensor]:
     """Every process's data-stream state, in rank order (a collective: every process must call it)."""
     if processes.world_size == 1:
@@ -396,7 +376,8 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     prior = make_prior(config.prior, model.arm.num_joints)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=0.0)
     budget = TrainingBudget(steps=config.steps, minutes=config.minutes, warmup=config.warmup)
-    data_generator = torch.Generator().manual_seed(config.seed + processes.rank)
+    # the data is made where the model trains: on a GPU, no batch is drawn on the CPU and copied over
+    data_generator = torch.Generator(device).manual_seed(config.seed + processes.rank)
     step, seconds_before, cpu_seconds_before = 0, 0.0, 0.0
     history: list[dict] = []  # (step, seconds, metrics) at every save: the run's minutes-to-accuracy curve
     if processes.is_main:
@@ -423,18 +404,30 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         cpu_seconds_before = float(payload["train"].get("cpu_seconds", 0.0))
         history = list(payload.get("history", []))
         states = payload.get("data_generators") or [payload["data_generator"]]
-        if len(states) == processes.world_size:
+        saved_on = payload["train"].get("data_device", "cpu")  # runs before data was made on the GPU: the CPU
+        if len(states) == processes.world_size and saved_on == device.type:
             data_generator.set_state(states[processes.rank])
-        else:  # another number of processes than the run saved: fresh streams, still one per process
+        else:  # another number of processes or another device than the run saved: fresh streams, one per process
             data_generator.manual_seed(config.seed + processes.rank + 1_000_003 * step)
             if processes.is_main:
-                print(f"resuming with {processes.world_size} processes, saved with {len(states)}: new data streams")
+                print(
+                    f"resuming with {processes.world_size} process(es) on {device.type}, saved with {len(states)} "
+                    f"on {saved_on}: new data streams"
+                )
         if processes.is_main:
             print(f"resuming {output} at step {step}", file=sys.stderr)
 
     loss = TrainingLoss(model, config)
     if processes.world_size > 1:
         loss = torch.nn.parallel.DistributedDataParallel(loss, device_ids=[device] if device.type == "cuda" else None)
+
+    def draw() -> torch.Tensor:  # one batch of ground-truth poses, (batch, J), on the training device
+        return prior.sample(config.batch, model.arm, generator=data_generator)
+
+    if config.graph:
+        steps = GraphedSteps(loss, model, draw, data_generator, optimizer, averaged, ema=config.ema)
+    else:
+        steps = EagerSteps(loss, model, draw, data_generator, optimizer, averaged)
 
     writer = None
     if processes.is_main:
@@ -466,6 +459,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
         train_record["torch_version"] = str(torch.__version__)
         train_record["threads"] = torch.get_num_threads()
         train_record["world_size"] = processes.world_size
+        train_record["data_device"] = device.type  # where the data streams saved below draw
         train_record["recipe"] = recipe_of(config).name  # where the options left out came from
         payload = {
             "model": model.config.to_dict(),
@@ -475,7 +469,7 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
             "history": history,
             "state_dict": solving_model.state_dict(),  # the averaged weights when --ema: what a solver loads
             **({"raw_state_dict": model.state_dict()} if averaged is not None else {}),
-            "optimizer": optimizer.state_dict(),
+            "optimizer": plain_optimizer_state(optimizer),
             "data_generator": data_generator.get_state(),
         }
         if data_states is not None:
@@ -489,11 +483,8 @@ def _train(config: TrainConfig, processes: Distributed, on_step: StepHook | None
     model.train()
     try:
         while not budget.finished(step, seconds):
-            headings = draw_batch(prior, model.arm, config.batch, data_generator, device)
             lr = config.lr * budget.lr_factor(step, seconds)
-            losses = training_step(loss, headings, data_generator, optimizer, lr)
-            if averaged is not None:
-                averaged.update_parameters(model)
+            headings, losses = steps(lr)
             step += 1
             seconds = agreed_seconds(wall_seconds(), processes, budget)
             if on_step is not None:
