@@ -88,6 +88,10 @@ class BoundConstraint:
         """joints (M, J) -> (M,) >= 0, zero where the constraint holds."""
         return torch.zeros(joints.shape[:-1], dtype=joints.dtype, device=joints.device)
 
+    def restart_from(self, starts: torch.Tensor) -> torch.Tensor:
+        """starts (R, K, J), a restart's uniform draws for its targets' rows -> the starts it refines instead."""
+        return starts
+
     def of_rows(self, rows: torch.Tensor) -> BoundConstraint:
         """The same constraint over the sampled rows `rows` (R,) only (random restarts refine a subset)."""
         raise NotImplementedError(f"{type(self).__name__} cannot be cut to a subset of its rows")

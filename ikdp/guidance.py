@@ -52,6 +52,13 @@ class ConstraintSet:
     def hold(self, joints: torch.Tensor) -> torch.Tensor:
         return joints if self.locked is None else self.locked.hold(joints)
 
+    def restart_from(self, starts: torch.Tensor) -> torch.Tensor:
+        """starts (R, K, J) uniform draws of a restart -> what it refines: each constraint's own starts (a pose to
+        stay near starts there), the locked joints at their values."""
+        for item in self.others:
+            starts = item.restart_from(starts)
+        return self.hold(starts)
+
     def of_targets(self, chosen: torch.Tensor) -> ConstraintSet:
         """The same constraints over the rows of the targets `chosen` (B,) bool only: what restarts refine."""
         rows = chosen.cpu().repeat_interleave(self.num_samples).nonzero()[:, 0]

@@ -115,5 +115,13 @@ class BoundNearPose(BoundConstraint):
         reference = self.pose.to(device=joints.device, dtype=joints.dtype)
         return -self.weight * joint_difference(self.arm, joints, reference)
 
+    def restart_from(self, starts: torch.Tensor) -> torch.Tensor:
+        """A restart stays near the pose too: its first start is the pose itself (the seed a numerical IK takes
+        from the robot's current joints), the next ones a growing share of the way to the uniform draws, the
+        last one the draw (K starts: shares 0, 1/(K-1), ..., 1), so the fallback still explores."""
+        reference = self.pose.to(device=starts.device, dtype=starts.dtype).reshape(starts.shape)
+        share = torch.linspace(0, 1, starts.shape[1], device=starts.device, dtype=starts.dtype)[:, None]
+        return reference + share * joint_difference(self.arm, starts, reference)
+
     def of_rows(self, rows: torch.Tensor) -> BoundNearPose:
         return replace(self, pose=self.pose[rows])

@@ -50,19 +50,18 @@ def restart_unreached(
 
     `constraints` (a ConstraintSet over the B x K rows): reaching also means meeting them; the fresh poses
     start with the locked joints at their values and are refined by the constrained task (obstacles cleared,
-    a partial target's free rows left free), cut to the restarted targets' rows (`ConstraintSet.of_targets`).
+    a partial target's free rows left free), cut to the restarted targets' rows (`ConstraintSet.of_targets`); with a
+    pose to stay near (NearPose) they start from it and a growing share of the way to the uniform draws.
     """
     restarted = ~within_tolerances(arm, angles, goals, constraints).any(dim=-1)
     if steps == 0 or not bool(restarted.any()):
         return angles, torch.zeros_like(restarted)
-    if generator is not None and generator.device.type != "cpu":
-        generator = None  # random_poses draws on the CPU
     rows, samples = int(restarted.sum()), angles.shape[1]
     starts = arm.random_poses(rows * samples, generator=generator).to(angles).unflatten(0, (rows, samples))
     subset = None if constraints is None else constraints.of_targets(restarted)
     task = None if subset is None else subset.refine_task()
     if subset is not None:
-        starts = subset.hold(starts)
+        starts = subset.restart_from(starts)
     row_goals = goals[restarted]
     fresh = damped_least_squares(arm, starts, row_goals, steps=steps, task=task)
     angles = angles.clone()
