@@ -51,6 +51,7 @@ class AngleRepresentation:
             wraps = torch.ones(num_links, dtype=torch.bool)
         self.kind = kind
         self.num_links = num_links
+        self._indices_by_device: dict = {}  # _on's copies
         self.wraps = wraps  # (J,) the joints whose values wrap at +-pi
         # coordinates per joint: (cos, sin) for a heading or a continuous joint, one number otherwise
         two = kind == "cossin" or (kind == "joints" and bool(wraps.any()))
@@ -66,7 +67,7 @@ class AngleRepresentation:
 
     def coordinate_mask(self, joint_mask: torch.Tensor) -> torch.Tensor:
         """(..., J) bool over joints -> (..., D) bool over the coordinates that hold those joints."""
-        return joint_mask.repeat_interleave(self.coordinates_per_joint.to(joint_mask.device), dim=-1)
+        return joint_mask.repeat_interleave(self._on(joint_mask.device)["coordinates_per_joint"], dim=-1)
 
     def encode(self, joints: torch.Tensor) -> torch.Tensor:
         """(..., J) joint values -> (..., D)."""
@@ -78,7 +79,7 @@ class AngleRepresentation:
         if self.kind == "joints":
             lower, half_range = self._limits_like(joints)
             choices = torch.stack(((joints - lower) / half_range - 1, torch.cos(joints), torch.sin(joints)), dim=-1)
-            return choices.flatten(-2)[..., self._encode_index.to(joints.device)]
+            return choices.flatten(-2)[..., self._on(joints.device)["encode_index"]]
         return torch.stack((torch.cos(joints), torch.sin(joints)), dim=-1).flatten(-2)
 
     def decode(self, x: torch.Tensor, *, clamp: bool = True) -> torch.Tensor:
@@ -95,11 +96,22 @@ class AngleRepresentation:
             return ((x.clamp(-1.0, 1.0) if clamp else x) + 1) * half_range + lower
         if self.kind == "joints":
             lower, half_range = self._limits_like(x)
-            first, second = x[..., self._first.to(x.device)], x[..., self._second.to(x.device)]
+            indices = self._on(x.device)
+            first, second = x[..., indices["first"]], x[..., indices["second"]]
             scaled = ((first.clamp(-1.0, 1.0) if clamp else first) + 1) * half_range + lower
-            return torch.where(self.wraps.to(x.device), torch.atan2(second, first), scaled)
+            return torch.where(indices["wraps"], torch.atan2(second, first), scaled)
         pairs = x.unflatten(-1, (self.num_links, 2))
         return torch.atan2(pairs[..., 1], pairs[..., 0])
+
+    def _on(self, device: torch.device) -> dict[str, torch.Tensor]:
+        """The index tensors (which coordinates hold which joint) on `device`, copied there once, as the limits
+        are: a host-to-device copy per call would break a CUDA graph's capture (training's or a solve's)."""
+        if device not in self._indices_by_device:
+            names = {"coordinates_per_joint": self.coordinates_per_joint, "wraps": self.wraps}
+            if self.kind == "joints":
+                names |= {"encode_index": self._encode_index, "first": self._first, "second": self._second}
+            self._indices_by_device[device] = {name: value.to(device) for name, value in names.items()}
+        return self._indices_by_device[device]
 
     def _limits_like(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(lower, half_range) on `like`'s device and dtype, copied there once: a copy per call would cost a

@@ -1,6 +1,7 @@
 """A recorder of what a CUDA graph cannot capture, run on a CPU: the captured code must make none of it."""
 
 import torch
+from torch.overrides import TorchFunctionMode
 from torch.utils._python_dispatch import TorchDispatchMode
 
 HOST_SYNCS = {"aten::_local_scalar_dense", "aten::nonzero", "aten::masked_select", "aten::is_nonzero", "aten::equal"}
@@ -22,3 +23,30 @@ class HostSyncRecorder(TorchDispatchMode):
         if name in HOST_SYNCS or name == "aten::lift_fresh" or masks:
             self.found.append(name)
         return func(*args, **(kwargs or {}))
+
+
+class HostCopyRecorder(TorchFunctionMode):
+    """Records each `.to(...)` that would copy a tensor from the host inside a capture: on a CPU every copy is a
+    no-op, so it is found by origin instead. A tensor made before the recording (a constant kept on the CPU)
+    moved by `.to` is reported, unless it is one of `own` (the model's parameters and buffers, on the device
+    already); tensors made while recording may move freely (they are on the device)."""
+
+    def __init__(self, own=()):
+        super().__init__()
+        self.own = {id(tensor) for tensor in own}
+        self.made: list[torch.Tensor] = []  # kept alive so that their ids are not reused
+        self.made_ids: set[int] = set()
+        self.found: list[str] = []
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        if func in (torch.Tensor.to, torch.Tensor.cuda) and isinstance(args[0], torch.Tensor):
+            source = args[0]
+            if id(source) not in self.made_ids and id(source) not in self.own:
+                self.found.append(f"{tuple(source.shape)} {source.dtype}")
+        result = func(*args, **kwargs)
+        for tensor in result if isinstance(result, (tuple, list)) else (result,):
+            if isinstance(tensor, torch.Tensor):
+                self.made.append(tensor)
+                self.made_ids.add(id(tensor))
+        return result

@@ -1,9 +1,11 @@
 """The CUDA-graph replay of the reverse loop and of a whole solve gives the eager samples (needs CUDA; skipped without
 it), and what a graph captures makes no host sync (checked on the CPU)."""
 
+from dataclasses import replace
+
 import pytest
 import torch
-from host_syncs import HostSyncRecorder
+from host_syncs import HostCopyRecorder, HostSyncRecorder
 
 import ikdp
 from ikdp.cuda_graph import CapturedReverseDiffusion, solve_without_sync
@@ -11,6 +13,7 @@ from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.refine import damped_least_squares, dls_step
 from ikdp.restarts import restart_every_target, within_tolerances
 from ikdp.samplers import make_sampler
+from ikdp.train import TrainConfig, train
 
 needs_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device")
 
@@ -88,6 +91,27 @@ def test_the_captured_solve_asks_the_device_nothing(name, sampler, steps, restar
     assert recorder.found == []
     with recorder, torch.inference_mode():  # the recorder sees what it must: solve's own restarts do sync
         solver.solve(targets, num_samples=4, sampler=sampler, steps=steps, refine_steps=3, restart_steps=5)
+    assert recorder.found
+
+
+def test_the_captured_solve_of_a_newly_trained_robot_copies_nothing_from_the_host(tmp_path):
+    """A robot trained by today's command diffuses its joints in the `joints` representation (the shipped ones
+    in `limits`), whose index tensors were copied to the device on every call: a capture refuses that. On a CPU a
+    copy is a no-op, so the recorder finds copies by origin (a tensor made before the solve, moved by `.to`)."""
+    config = TrainConfig(robot="panda", steps=2, batch=16, hidden=32, blocks=1, timesteps=10, eval_targets=0)
+    solver = ikdp.load(train(replace(config, output=str(tmp_path / "m.pt"), log_dir=str(tmp_path / "tb"))))
+    assert solver.model.representation.kind == "joints"
+    loop = make_sampler("ddim", solver.model.schedule, 2, "quadratic")
+    targets = reachable_targets(solver, 10, 0)
+    options = dict(num_samples=4, refine_steps=3, restart_steps=5, generator=torch.Generator().manual_seed(0))
+    solve_without_sync(solver, loop, targets, **options)  # warm-up: the per-device constants
+    recorder = HostCopyRecorder(own=[*solver.model.parameters(), *solver.model.buffers()])
+    with recorder, torch.inference_mode():
+        solve_without_sync(solver, loop, targets, **options)
+    assert recorder.found == []
+    solver.model.representation._indices_by_device.clear()  # the recorder sees what it must: a first copy
+    with recorder, torch.inference_mode():
+        solve_without_sync(solver, loop, targets, **options)
     assert recorder.found
 
 

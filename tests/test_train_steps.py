@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
-from host_syncs import HostSyncRecorder
+from host_syncs import HostCopyRecorder, HostSyncRecorder
 from torch.overrides import TorchFunctionMode
 
 from ikdp.checkpoint import read_checkpoint, save_checkpoint
@@ -73,6 +73,20 @@ def test_a_recorded_step_asks_the_device_nothing(options, monkeypatch):
     with recorder:  # the recorder sees what it must: the eager average checks its count on the host
         steps.step(average=steps.update_average)
     assert recorder.found
+
+
+@pytest.mark.parametrize("options", [PLANAR, PANDA], ids=["planar", "panda"])
+def test_a_recorded_step_copies_nothing_from_the_host(options, monkeypatch):
+    """No constant kept on the CPU is moved to the device inside a step (a capture refuses a host copy; on a CPU
+    a copy is a no-op, so the recorder finds them by origin). The Panda diffuses in the `joints` representation,
+    whose index tensors were such copies."""
+    *_, steps = run_steps(GraphedSteps, options, 3, record=eager_recording)
+    monkeypatch.setattr(steps.optimizer, "step", lambda: None)
+    own = [*steps.model.parameters(), *steps.model.buffers(), *steps.averaged.module.parameters()]
+    recorder = HostCopyRecorder(own)
+    with recorder:
+        steps.step(average=steps.lerp_average)
+    assert recorder.found == []
 
 
 class RandomDraws(TorchFunctionMode):
