@@ -22,22 +22,20 @@ Step = Callable[[], tuple[torch.Tensor, dict[str, torch.Tensor]]]  # one whole s
 Recorder = Callable[[Step, torch.Generator], Step]  # a step -> its replay
 
 
-def training_step(
-    loss: torch.nn.Module,
-    headings: torch.Tensor,
-    generator: torch.Generator,
-    optimizer: torch.optim.Optimizer,
-    lr: float,
-) -> dict[str, torch.Tensor]:
-    """One optimizer step at rate `lr` on `headings`; under DDP the backward pass averages the gradients."""
-    for group in optimizer.param_groups:
-        group["lr"] = lr
-    losses = loss(headings, generator)
+def take_step(
+    loss: torch.nn.Module, draw: Callable[[], torch.Tensor], generator: torch.Generator, optimizer
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """One optimizer step on a batch drawn now, at the rate the optimizer holds -> (the batch, the losses).
+
+    The gradients are dropped first: a recorded backward then writes them rather than adding to them. Under DDP
+    the backward pass averages them over the processes."""
     optimizer.zero_grad(set_to_none=True)
+    headings = draw()
+    losses = loss(headings, generator)
     losses["loss"].backward()
     torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
     optimizer.step()
-    return losses
+    return headings, losses
 
 
 class EagerSteps:
@@ -52,8 +50,9 @@ class EagerSteps:
             group["capturable"] = False
 
     def __call__(self, lr: float) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-        headings = self.draw()
-        losses = training_step(self.loss, headings, self.generator, self.optimizer, lr)
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
+        headings, losses = take_step(self.loss, self.draw, self.generator, self.optimizer)
         if self.averaged is not None:
             self.averaged.update_parameters(self.model)
         return headings, losses
@@ -99,8 +98,7 @@ class GraphedSteps:
         self.loss, self.model, self.draw, self.generator = loss, model, draw, generator
         self.optimizer, self.averaged = optimizer, averaged
         self.ema, self.record = ema, record
-        self.parameters = [parameter for group in optimizer.param_groups for parameter in group["params"]]
-        self.device = self.parameters[0].device
+        self.device = next(model.parameters()).device
         self.lr = torch.zeros((), device=self.device)  # the rate a replay reads, set before each
         capturable = self.device.type == "cuda"  # AdamW's step count then lives on the GPU, read by the graph
         for group in optimizer.param_groups:
@@ -124,15 +122,8 @@ class GraphedSteps:
         return self.replay()
 
     def step(self, average: Callable[[], None]) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-        """The whole step; no host sync and fixed shapes, so it records.
-
-        The gradients are dropped first: a recorded backward then writes them rather than adding to them."""
-        self.optimizer.zero_grad(set_to_none=True)
-        headings = self.draw()
-        losses = self.loss(headings, self.generator)
-        losses["loss"].backward()
-        torch.nn.utils.clip_grad_norm_(self.parameters, 1.0)
-        self.optimizer.step()
+        """The whole step, the moving average's update included; no host sync and fixed shapes, so it records."""
+        headings, losses = take_step(self.loss, self.draw, self.generator, self.optimizer)
         average()
         return headings, losses
 
