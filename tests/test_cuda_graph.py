@@ -5,6 +5,7 @@ from dataclasses import replace
 
 import pytest
 import torch
+from gpu_machine import panda_chain
 from host_syncs import HostCopyRecorder, HostSyncRecorder
 
 import ikdp
@@ -98,7 +99,7 @@ def test_the_captured_solve_of_a_newly_trained_robot_copies_nothing_from_the_hos
     """A robot trained by today's command diffuses its joints in the `joints` representation (the shipped ones
     in `limits`), whose index tensors were copied to the device on every call: a capture refuses that. On a CPU a
     copy is a no-op, so the recorder finds copies by origin (a tensor made before the solve, moved by `.to`)."""
-    config = TrainConfig(robot="panda", steps=2, batch=16, hidden=32, blocks=1, timesteps=10, eval_targets=0)
+    config = TrainConfig(**panda_chain(), steps=2, batch=16, hidden=32, blocks=1, timesteps=10, eval_targets=0)
     solver = ikdp.load(train(replace(config, output=str(tmp_path / "m.pt"), log_dir=str(tmp_path / "tb"))))
     assert solver.model.representation.kind == "joints"
     loop = make_sampler("ddim", solver.model.schedule, 2, "quadratic")

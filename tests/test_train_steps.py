@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from gpu_machine import panda_chain
 from host_syncs import HostCopyRecorder, HostSyncRecorder
 from torch.overrides import TorchFunctionMode
 
@@ -18,8 +19,10 @@ from ikdp.train_steps import EagerSteps, GraphedSteps, plain_optimizer_state
 needs_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device")
 
 PLANAR = dict(joints=3, prior="relaxed", tip_loss_weight=0.5, snr_gamma=5.0, hidden=32, blocks=2, timesteps=20)
+
+
 # the Panda with its kinematic features, the DLS skip and the limit-aware step: the chain's widest forward pass
-PANDA = dict(robot="panda", hidden=32, blocks=1, timesteps=20, dls_skip=True, limit_aware_step=True)
+PANDA = dict(**panda_chain(), hidden=32, blocks=1, timesteps=20, dls_skip=True, limit_aware_step=True)
 
 
 def run_steps(kind, options: dict, count: int, device="cpu", record=None, seed=0):
@@ -195,7 +198,7 @@ def test_cuda_graph_steps_take_the_eager_steps(options):
 
 @needs_cuda
 def test_cuda_graph_training_saves_and_resumes(tmp_path):
-    config = replace(small(tmp_path, device="cuda"), graph=True, robot="panda", hidden=32)
+    config = replace(small(tmp_path, device="cuda"), graph=True, **panda_chain(), hidden=32)
     output = train(config)
     assert read_checkpoint(output)["train"]["data_device"] == "cuda"
     train(replace(config, steps=12, resume=True))
