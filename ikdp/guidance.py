@@ -22,6 +22,7 @@ from collections.abc import Sequence
 
 import torch
 
+from ikdp.arm import drawing_device
 from ikdp.constraint_base import Constraint
 from ikdp.joint_constraints import BoundLockedJoints
 from ikdp.partial_targets import BoundPartialTarget
@@ -143,7 +144,9 @@ class SamplingGuidance:
         sigma = 0.0 if t_next < 0 else floats["sqrt_one_minus_alphas_cumprod"][t_next]
         noised = self.locked_clean * alpha
         if sigma > 0:
-            noised = noised + sigma * torch.randn(state.shape, generator=generator).to(state)
+            # drawn where the generator lives (a CUDA generator cannot draw on the CPU), then moved to the state
+            noise = torch.randn(state.shape, generator=generator, device=drawing_device(generator))
+            noised = noised + sigma * noise.to(state)
         state.copy_(torch.where(self.locked_coordinates, noised, state))
 
 

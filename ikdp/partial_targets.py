@@ -18,7 +18,7 @@ from typing import ClassVar
 
 import torch
 
-from ikdp.arm import validate_target_rows
+from ikdp.arm import drawing_device, validate_target_rows
 from ikdp.constraint_base import BoundConstraint, Constraint, finite_tensor
 from ikdp.refine import clamp_task_error, dls_step
 from ikdp.rotations import quaternion_multiply, quaternion_to_matrix
@@ -107,7 +107,7 @@ class BoundPartialTarget(BoundConstraint):
             nearest = torch.cdist(targets[:, :3], pool[:, :3].to(targets)).topk(num_samples, largest=False).indices
             rotations = pool[:, 3:].to(targets)[nearest]  # (B, K, 4)
         else:
-            offset = torch.rand((batch, 1), generator=generator)
+            offset = torch.rand((batch, 1), generator=generator, device=drawing_device(generator)).cpu()
             angles = 2 * math.pi * (torch.arange(num_samples) + offset) / num_samples  # (B, K)
             turns = axis_turn(self.axis, angles).to(targets)
             rotations = quaternion_multiply(targets[:, None, 3:].expand(batch, num_samples, 4), turns)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from device_recorders import RandomDraws
 
 import ikdp
 from ikdp.chain_arm import origin_matrix
@@ -532,3 +533,34 @@ def test_a_robots_penetration_gradient_in_closed_form_matches_autograd():
     assert bool((depth > 0).all())
     assert torch.allclose(depth, expected.detach(), atol=1e-12)
     assert torch.allclose(gradient, autograd, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "constraints",
+    [
+        [],
+        [ikdp.LockedJoints({"panda_joint1": 0.3})],  # RePaint noises the locked coordinates at every step
+        [ikdp.NearPose([0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.7])],
+        [ikdp.FreeAxis()],  # each target's turns about the axis start at a random offset
+        [ikdp.PositionOnly()],  # each sample's rotation from a pool of random reachable poses
+        [ikdp.Obstacles(centers=[[0.3, 0.0, 0.3]], radii=0.1)],
+    ],
+    ids=["plain", "locked", "near", "free_axis", "position_only", "obstacles"],
+)
+def test_every_draw_of_a_constrained_solve_is_made_on_its_generators_device(tiny_chain_checkpoint, constraints):
+    """A draw from the solve's generator that names no device is made on the CPU: with a solve's CUDA generator
+    that is an error (RePaint's noise and a free axis's offsets were such draws). Checked on a CPU by what each
+    draw names (tests/device_recorders.RandomDraws), restarts included."""
+    solver = ikdp.load(tiny_chain_checkpoint)
+    targets = solver.arm.end_effector(solver.arm.random_poses(3, generator=torch.Generator().manual_seed(0)))
+    if any(isinstance(item, ikdp.PositionOnly) for item in constraints):
+        targets = targets[:, :3]
+    generator = torch.Generator().manual_seed(1)
+    draws = RandomDraws()
+    with draws:
+        solver.solve(
+            targets, num_samples=4, sampler="ddpm", refine_steps=2, restart_steps=3, constraints=constraints,
+            generator=generator,
+        )  # fmt: skip
+    assert any(drawn_from is generator for _, _, drawn_from in draws.draws)
+    assert draws.off_device(generator) == []

@@ -5,8 +5,8 @@ from dataclasses import replace
 
 import pytest
 import torch
+from device_recorders import HostCopyRecorder, HostSyncRecorder
 from gpu_machine import panda_chain
-from host_syncs import HostCopyRecorder, HostSyncRecorder
 
 import ikdp
 from ikdp.cuda_graph import CapturedReverseDiffusion, solve_without_sync

@@ -7,9 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from device_recorders import HostCopyRecorder, HostSyncRecorder, RandomDraws
 from gpu_machine import panda_chain
-from host_syncs import HostCopyRecorder, HostSyncRecorder
-from torch.overrides import TorchFunctionMode
 
 from ikdp.checkpoint import read_checkpoint, save_checkpoint
 from ikdp.priors import make_prior
@@ -90,20 +89,6 @@ def test_a_recorded_step_copies_nothing_from_the_host(options, monkeypatch):
     with recorder:
         steps.step(average=steps.lerp_average)
     assert recorder.found == []
-
-
-class RandomDraws(TorchFunctionMode):
-    """Every random draw and the device it names."""
-
-    def __init__(self):
-        super().__init__()
-        self.draws: list[tuple[str, object, torch.Generator | None]] = []
-
-    def __torch_function__(self, func, types, args=(), kwargs=None):
-        kwargs = kwargs or {}
-        if getattr(func, "__name__", "") in ("rand", "randn", "randint", "normal", "multinomial"):
-            self.draws.append((func.__name__, kwargs.get("device"), kwargs.get("generator")))
-        return func(*args, **kwargs)
 
 
 @pytest.mark.parametrize("options", [PLANAR, PANDA, dict(joints=2, prior="uniform")], ids=["relaxed", "panda", "n2"])

@@ -1,4 +1,5 @@
-"""A recorder of what a CUDA graph cannot capture, run on a CPU: the captured code must make none of it."""
+"""Recorders, run on a CPU, of what would go wrong on a GPU: what a CUDA graph cannot capture (a host sync, a copy
+from the host) and a random draw made off its generator's device."""
 
 import torch
 from torch.overrides import TorchFunctionMode
@@ -50,3 +51,28 @@ class HostCopyRecorder(TorchFunctionMode):
                 self.made.append(tensor)
                 self.made_ids.add(id(tensor))
         return result
+
+
+class RandomDraws(TorchFunctionMode):
+    """Every random draw, the device it names and the generator it takes: a draw that names no device is made on
+    the CPU, which with a CUDA generator is an error, and with data on a GPU a host copy per call."""
+
+    def __init__(self):
+        super().__init__()
+        self.draws: list[tuple[str, object, torch.Generator | None]] = []
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        if getattr(func, "__name__", "") in ("rand", "randn", "randint", "normal", "multinomial"):
+            out = kwargs.get("out")  # a draw into a buffer lands on the buffer's device
+            device = out.device if isinstance(out, torch.Tensor) else kwargs.get("device")
+            self.draws.append((func.__name__, device, kwargs.get("generator")))
+        return func(*args, **kwargs)
+
+    def off_device(self, generator: torch.Generator) -> list[str]:
+        """The draws from `generator` made off its device."""
+        return [
+            name
+            for name, device, drawn_from in self.draws
+            if drawn_from is generator and (device is None or torch.device(device) != generator.device)
+        ]
