@@ -227,7 +227,10 @@ def validate(config: TrainConfig) -> None:
         raise ValueError("dls_skip: adds a step to the estimate of x_0, so it needs --prediction sample")
     checked_device(config.device)
     if config.graph and torch.device(config.device).type != "cuda":
-        raise ValueError(f"graph: --graph records each step as a CUDA graph, on --device cuda, got {config.device!r}")
+        raise ValueError(
+            f"graph: --graph records each step as a CUDA graph, on --device cuda, got {config.device!r} "
+            "(--no-graph trains without)"
+        )
     if config.graph and int(os.environ.get("WORLD_SIZE", "1")) > 1:
         raise ValueError("graph: --graph trains in one process; under torchrun leave it out")
     if Path(config.output).is_dir():
