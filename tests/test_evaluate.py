@@ -66,6 +66,8 @@ def test_an_ikdp_job_is_keyed_by_what_shapes_the_model_not_where_it_trains(tmp_p
     job = ikdp_job(tmp_path, **arguments)
     assert ikdp_job(tmp_path, **arguments).output == job.output
     assert ikdp_job(tmp_path / "elsewhere", **arguments).output.name == job.output.name
+    for how in ({"device": "cuda"}, {"graph": True}):  # how fast it trains: the cache still holds the same model
+        assert ikdp_job(tmp_path, **{**arguments, "settings": {"denoiser": "paper", **how}}).output == job.output, how
     for change in ({"timesteps": 40}, {"seed": 1}, {"steps": 101}, {"prior": "relaxed"}, {"settings": {"lr": 3e-4}}):
         assert ikdp_job(tmp_path, **{**arguments, **change}).output != job.output, change
 

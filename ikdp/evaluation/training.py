@@ -31,7 +31,7 @@ PAPER_TRAINING = dict(denoiser="paper", representation="angle", tip_loss_weight=
 RECORDED_SETTINGS = ("denoiser", "representation", "tip_loss_weight", "snr_gamma", "prediction", "schedule", "lr")
 RECORDED_SETTINGS += ("warmup",)
 # TrainConfig fields that say where and how fast a model trains, not what it learns: left out of its cache key
-NOT_IN_KEY = ("output", "log_dir", "threads", "device", "resume", "save_every")
+NOT_IN_KEY = ("output", "log_dir", "threads", "device", "graph", "resume", "save_every")
 
 
 def paper_training_settings(reference_checkpoint: Path | None) -> dict:
