@@ -415,7 +415,9 @@ def distill(config: DistillConfig, command: str = "") -> Path:
                 writer.add_scalar("train/energy_distance", float(distribution.mean().detach()), step)
                 writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean().detach()), step)
                 writer.add_scalar("train/lr", optimizer.param_groups[0]["lr"], step)
-                progress.set_postfix(loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.sqrt().mean()):.4f}")
+                progress.set_postfix(
+                    loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.detach().sqrt().mean()):.4f}"
+                )
             progress.update(1)
             if step % config.save_every == 0:
                 save(final=False)

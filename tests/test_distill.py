@@ -1,5 +1,6 @@
 """ikdp.distill: the student's unrolled training loop is the solver's loop, and a run saves, resumes and loads."""
 
+import warnings
 from dataclasses import replace
 
 import pytest
@@ -80,6 +81,14 @@ def test_a_student_saves_resumes_and_solves_in_its_own_steps(tiny_checkpoint, tm
     assert out.network_evaluations == 2 and out.timesteps == [19, 0]
     # its own (sampler, steps) take its grid; other solves keep the planar default
     assert student.default_spacing("ddim", 2) == "quadratic" and student.default_spacing("ddim", 4) == "uniform"
+
+
+def test_a_run_that_shows_its_losses_warns_of_nothing(tiny_checkpoint, tmp_path):
+    """The progress bar reads the losses every 10 steps: a gradient-carrying tensor read as a float made torch warn
+    at every run."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        distill(small_config(tmp_path, tiny_checkpoint, steps=10))
 
 
 def test_describe_prints_a_students_command_and_its_teachers_arm(tiny_checkpoint, tmp_path):
