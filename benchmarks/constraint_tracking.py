@@ -128,6 +128,9 @@ def track_variants(config: ConstraintBenchmarkConfig, stress: bool) -> dict:
         f"IKDP track, near-pose weight {weight}, samples only": {"weight": weight, "warm_start": False},
         "IKDP, no near-pose pull (nearest valid sample kept)": {"weight": 0.0, "warm_start": False},
     }
+    if config.restart_steps:  # the unreached targets' restarts, which start from the previous solution (NearPose)
+        label = f"IKDP track, near-pose weight {weight}, + warm-started candidate, restarts + {config.restart_steps}"
+        variants[label] = {"weight": weight, "warm_start": True, "restart_steps": config.restart_steps}
     if stress:  # the default has both rules; they act only where some target is out of reach
         variants |= {
             "IKDP track, hold_step only (no look-ahead)": {"weight": weight, "look_ahead": 0},

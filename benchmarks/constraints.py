@@ -71,7 +71,7 @@ class ConstraintBenchmarkConfig:
     planar_sampler: str = "dpmpp2m:10"
     obstacle_extra_samplers: tuple[str, ...] = ("ddpm",)  # more guided IKDP rows in the obstacle part
     random_start_steps: tuple[int, ...] = (5, 10, 20)  # constrained DLS steps from 16 uniform random starts
-    restart_steps: int = 20  # parts 1 and 2: one more IKDP row with solve's restart_steps (0: no such row)
+    restart_steps: int = 20  # parts 1, 2 and 3: one more IKDP row with solve's restart_steps (0: no such row)
     certified_placement: bool = True  # obstacles: only sphere pairs that leave a certified free solution
     pk_retries: int = 16
     pk_iterations: int = 30
