@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 import torch
 from torch import nn
 
-from ikdp.arm import PlanarArm, arm_from_config
+from ikdp.arm import PlanarArm, arm_from_config, drawing_device
 from ikdp.denoisers import DenoiserConfig, build_denoiser
 from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 from ikdp.samplers import Sampler, make_sampler
@@ -105,7 +105,7 @@ class IKDiffusion(nn.Module):
         clean = self.representation.encode(joints)  # (B, D)
         # drawn where the generator lives (the poses' device when training makes its data there), and nothing
         # read back: a GPU training step is captured whole as a CUDA graph (ikdp/train_steps.py)
-        drawn_on = generator.device if generator is not None else device
+        drawn_on = drawing_device(generator)
         t = torch.randint(self.schedule.num_timesteps, (batch,), generator=generator, device=drawn_on).to(device)
         noise = torch.randn(clean.shape, generator=generator, device=drawn_on).to(device)
         noisy = self.schedule.mix(clean, noise, t)
