@@ -1,8 +1,10 @@
 """What the tests need where the lent GPU machine lacks it: it has no example-robot-data, so the Panda comes from a
-URDF carried beside the checkout (.gpu/panda.urdf, or the file $PANDA_URDF names)."""
+URDF carried beside the checkout (under .gpu/ in example-robot-data's own folders, or the file $PANDA_URDF names)."""
 
 import os
 from importlib import metadata
+
+CARRIED_URDF = ".gpu/example-robot-data/robots/panda_description/urdf/panda.urdf"
 
 
 def panda_chain() -> dict:
@@ -11,4 +13,4 @@ def panda_chain() -> dict:
         metadata.distribution("example-robot-data")
         return {"robot": "panda"}
     except metadata.PackageNotFoundError:
-        return {"urdf": os.environ.get("PANDA_URDF", ".gpu/panda.urdf"), "ee_link": "panda_hand"}
+        return {"urdf": os.environ.get("PANDA_URDF", CARRIED_URDF), "ee_link": "panda_hand"}

@@ -12,8 +12,8 @@ from gpu_machine import panda_chain
 
 from ikdp.checkpoint import read_checkpoint, save_checkpoint
 from ikdp.priors import make_prior
-from ikdp.train import TrainConfig, TrainingLoss, build_model, main, train, with_arm_defaults
-from ikdp.train_steps import EagerSteps, GraphedSteps, plain_optimizer_state
+from ikdp.train import TrainConfig, TrainingLoss, build_model, train, with_arm_defaults
+from ikdp.train_steps import EagerSteps, GraphedSteps, graph_applies, plain_optimizer_state
 
 needs_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device")
 
@@ -118,23 +118,21 @@ def small(tmp_path, **changes):
     return replace(config, **changes)
 
 
-def test_graph_without_cuda_is_refused_in_one_line_before_training(tmp_path, capsys):
-    config = replace(small(tmp_path), graph=True)
-    with pytest.raises(ValueError, match=r"^graph: --graph records each step as a CUDA graph, on --device cuda"):
-        train(config)
-    assert not (tmp_path / "tb").exists()
-    with pytest.raises(SystemExit) as exit_code:
-        main(["--joints", "2", "--graph", "--output", str(tmp_path / "m.pt")])
-    assert exit_code.value.code == 2
-    error = capsys.readouterr().err.strip().splitlines()
-    assert len(error) == 1 and error[0].startswith("ikdp-train: error: graph:")
+def test_graphed_steps_apply_on_one_cuda_process_only():
+    assert graph_applies(True, torch.device("cuda", 0), world_size=1)
+    assert not graph_applies(False, torch.device("cuda", 0), world_size=1)  # --no-graph
+    assert not graph_applies(True, torch.device("cpu"), world_size=1)
+    assert not graph_applies(True, torch.device("cuda", 0), world_size=2)  # under torchrun: DDP's eager steps
 
 
-def test_graph_is_refused_under_torchrun(tmp_path, monkeypatch):
-    monkeypatch.setenv("WORLD_SIZE", "2")
-    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
-    with pytest.raises(ValueError, match=r"^graph: --graph trains in one process"):
-        train(replace(small(tmp_path), graph=True, device="cuda"))
+def test_the_default_graph_on_a_cpu_trains_the_eager_steps(tmp_path):
+    """`--graph` is on by default; on a CPU it takes the eager steps, so the weights are --no-graph's to the bit."""
+    assert TrainConfig().graph
+    default = read_checkpoint(train(small(tmp_path / "a")))
+    eager = read_checkpoint(train(replace(small(tmp_path / "b"), graph=False)))
+    assert default["state_dict"].keys() == eager["state_dict"].keys()
+    for name, value in default["state_dict"].items():
+        torch.testing.assert_close(value, eager["state_dict"][name], atol=0, rtol=0)
 
 
 def test_a_checkpoint_records_where_its_data_was_drawn_and_a_plain_optimizer(tmp_path):

@@ -8,7 +8,7 @@ Rows, for the Panda at the GPU recipe (batch 8192, width 512) and the planar N =
 - `eager, data from the CPU`: the loop before data was made on the device (the baseline): each batch, its
   timesteps and noise drawn on the CPU and copied over;
 - `eager, data on the GPU`: EagerSteps as `ikdp.train --device cuda` runs now;
-- `graph`: GraphedSteps, `ikdp.train --device cuda --graph`, each step replayed from one CUDA graph.
+- `graph`: GraphedSteps, `ikdp.train --device cuda` (its default there), each step replayed from one CUDA graph.
 Each is warmed up, then timed in `WINDOWS` windows of `STEPS` steps with a synchronize at both ends; the median
 window's steps per second is quoted. A last check: the graph's weights after the same steps stay near the
 eager ones' (the same data stream; capturable AdamW rounds differently).
@@ -30,7 +30,7 @@ from ikdp.priors import make_prior
 from ikdp.train import TrainConfig, TrainingLoss, build_model, with_arm_defaults
 from ikdp.train_steps import EagerSteps, GraphedSteps
 
-URDF = sys.argv[1] if len(sys.argv) > 1 else ".gpu/panda.urdf"
+URDF = sys.argv[1] if len(sys.argv) > 1 else ".gpu/example-robot-data/robots/panda_description/urdf/panda.urdf"
 DEVICE = torch.device(sys.argv[2] if len(sys.argv) > 2 else "cuda")
 OUT = Path(os.environ.get("OUT", "/tmp")) / "train_graph.json"
 STEPS, WINDOWS = int(os.environ.get("STEPS", "100")), int(os.environ.get("WINDOWS", "5"))

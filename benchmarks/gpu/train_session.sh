@@ -9,13 +9,16 @@
 #      benchmark's 1000 held-out targets are);
 #   3. the training step's and the captured solve's CUDA tests, in the time that remains.
 # Everything goes to $OUT. Run from the repository root on the device machine, with .whl (tyro and
-# pytorch_kinematics wheels) and .gpu/panda.urdf carried (it has no example-robot-data):
+# pytorch_kinematics wheels) and .gpu carried: it has no example-robot-data, so the Panda's URDF goes as
+# .gpu/example-robot-data/robots/panda_description/urdf/panda.urdf (under that package's own folder names, the
+# path the checkpoint records resolves to the installed copy, meshes and all, on the machine that loads it):
 #   bash benchmarks/gpu/train_session.sh
 # A dry run on a CPU: DEVICE=cpu GRAPH=--no-graph DEADLINE=200 OUT=/tmp/out bash benchmarks/gpu/train_session.sh
 set -uo pipefail
 DEADLINE=${DEADLINE:-540}
 DEVICE=${DEVICE:-cuda}
 GRAPH=${GRAPH:---graph}
+PANDA=${PANDA_URDF:-.gpu/example-robot-data/robots/panda_description/urdf/panda.urdf}
 left() { echo $((DEADLINE - SECONDS)); }
 if [ -d .whl ]; then
     python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl
@@ -25,7 +28,7 @@ export PYTHONUNBUFFERED=1
 { nvidia-smi --query-gpu=name,driver_version --format=csv,noheader; python3 -c "import torch; print(torch.__version__)"; } \
     2>&1 | tee "$OUT/bench.log"
 
-STEPS=50 WINDOWS=3 timeout 100 python3 -m benchmarks.gpu.train_graph .gpu/panda.urdf "$DEVICE" 2>&1 | tail -14 \
+STEPS=50 WINDOWS=3 timeout 100 python3 -m benchmarks.gpu.train_graph "$PANDA" "$DEVICE" 2>&1 | tail -14 \
     | tee -a "$OUT/bench.log"
 
 mkdir -p runs
@@ -35,7 +38,7 @@ train() {  # $1: seconds of training; the rest: extra options
     local minutes
     minutes=$(python3 -c "print(round(max($seconds, 30) / 60, 2))")
     echo "training for $minutes min $*" | tee -a "$OUT/train.log"
-    python3 -m ikdp.train --urdf .gpu/panda.urdf --ee-link panda_hand --device "$DEVICE" --minutes "$minutes" \
+    python3 -m ikdp.train --urdf "$PANDA" --ee-link panda_hand --device "$DEVICE" --minutes "$minutes" \
         --save-every 10000 --eval-targets 500 --output runs/panda_gpu.pt "$@" 2>&1 | tr '\r' '\n' \
         | grep -v -E "it/s|s/s," | tee -a "$OUT/train.log" | tail -6
 }
