@@ -317,10 +317,11 @@ def test_a_recorded_urdf_copy_that_exists_here_yields_to_the_installed_one(panda
     assert arm.recorded_urdf_path == str(bare)
 
 
-def test_the_shipped_panda_model_names_this_machines_urdf():
+@pytest.mark.parametrize("name", ["ikdp_panda", "ikdp_panda_gpu"])  # both trained on GPU machines, from copies
+def test_the_shipped_panda_model_names_this_machines_urdf(name):
     import ikdp
 
-    arm = ikdp.load("ikdp_panda").arm
+    arm = ikdp.load(name).arm
     assert Path(arm.urdf_path).is_file() and arm.urdf_path.endswith("panda_description/urdf/panda.urdf")
     assert [link.name for link in arm.chain_description().links][:2] == ["panda_link0", "panda_link1"]
 
