@@ -20,7 +20,10 @@ pose onto the target where the teacher's ODE missed it. Poses and noise are draw
 
 The student checkpoint is an ordinary IKDP checkpoint (`ikdp.load` solves with it, with any sampler)
 plus a `distill` record: the teacher, its sampler, and the student's (sampler, steps, spacing), which
-`Solver.default_spacing` follows. A tqdm bar shows the loss; TensorBoard logs go beside the checkpoint
+`Solver.default_spacing` follows. The poses, the noise and a pool's picks are drawn on the training device
+(`--device cuda`: nothing copied from the CPU per step), and there a step that runs no teacher (the one-step
+recipe's: no match or spread term, the reference from a pool) is replayed from one CUDA graph, as `ikdp.train`'s
+steps are (ikdp/distill_step.py, ikdp/train_steps.py). A tqdm bar shows the loss; TensorBoard logs go beside the checkpoint
 (`<folder>/logs/<stem>`); the checkpoint is written atomically every `--save-every` steps, at the end
 and on Ctrl-C or SIGTERM; `--resume` continues from it; `--minutes` bounds the wall clock.
 """
@@ -40,14 +43,15 @@ import torch
 from tqdm import tqdm
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
-from ikdp.distill_reference import PoseStream, energy_distance, mean_distance, refined_in_place
+from ikdp.distill_reference import PoseStream
+from ikdp.distill_step import DistillLoss, runs_the_teacher, student_sampler
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.posterior_pool import check_posterior_target
 from ikdp.priors import PosePrior
-from ikdp.samplers import DDIMSampler, make_sampler
 from ikdp.solver import load, model_from_checkpoint
 from ikdp.train import parse_config, save_on_interrupt
 from ikdp.train_budget import TrainingBudget
+from ikdp.train_steps import EagerSteps, GraphedSteps, graph_applies, plain_optimizer_state
 
 
 @dataclass(frozen=True)
@@ -103,7 +107,11 @@ class DistillConfig:
     lr: float = 1e-4  # peak learning rate (AdamW): the student starts from the teacher's weights
     warmup: int = 100  # linear warm-up steps, then cosine down to a tenth
     seed: int = 0  # seeds the data stream (poses and noise)
-    device: str = "cpu"  # cpu, cuda, ...
+    device: str = "cpu"  # cpu, cuda, ...; the data (poses, noise, pool picks) is drawn there
+    # each step replayed from one CUDA graph where one applies: --device cuda, and a step that runs no teacher (the
+    # match and spread terms off, the distribution term's reference from a pool; ikdp/distill_step.py); elsewhere,
+    # and with --no-graph, eager steps
+    graph: bool = True
     threads: int = 0  # torch CPU threads; 0 leaves torch's default
     output: str = "runs/student.pt"  # the student's checkpoint
     log_dir: str = ""  # TensorBoard folder; empty: <output folder>/logs/<output stem>
@@ -153,64 +161,6 @@ def validate(config: DistillConfig) -> None:
             raise ValueError("reference: posterior samples are drawn once, into a pool; give reference_pool > 0")
         if config.refine_reference_steps:
             raise ValueError("refine_reference_steps: the posterior's samples reach their targets already; leave it 0")
-
-
-DISTANCE_SMOOTHING = 1e-3  # metres: below this the distance form of the FK miss turns quadratic (no kink at zero)
-
-
-def fk_distance(consistency: torch.Tensor, span: float) -> torch.Tensor:
-    """(B,) each pose's FK miss as a distance over the arm's span, from `consistency` (B,), the squared miss over the
-    span squared (rotation included): its square root, pseudo-Huber smoothed below DISTANCE_SMOOTHING."""
-    smoothing = (DISTANCE_SMOOTHING / span) ** 2
-    return (consistency + smoothing).sqrt() - math.sqrt(smoothing)
-
-
-def student_sampler(model: IKDiffusion, config: DistillConfig) -> DDIMSampler:
-    sampler = make_sampler("ddim", model.schedule, config.student_steps, config.spacing)
-    assert isinstance(sampler, DDIMSampler)
-    return sampler
-
-
-def unrolled_student(model: IKDiffusion, sampler: DDIMSampler, noise: torch.Tensor, targets: torch.Tensor):
-    """The student's DDIM from x_T (B, D) to its clean pose (B, D), with the graph kept for the gradient.
-
-    The loop of ikdp.sampling.run_reverse_diffusion, step for step (x̂0 from the denoiser, projected onto
-    the representation's manifold, then DDIM's update), on the training forward of the denoiser.
-    """
-    project = not (model.config.prediction == "sample" and getattr(model.denoiser, "output_on_manifold", False))
-    x = noise
-    for index, t in enumerate(sampler.timesteps):
-        output = model.denoiser(x, torch.full((len(x),), t, device=x.device), targets)
-        clean = model.schedule.predict_clean(output, t, x, model.config.prediction)
-        if project:
-            clean = model.representation.project(clean)
-        x = sampler.update(index, x, clean)
-    return x
-
-
-def spread_miss(student: torch.Tensor, teacher: torch.Tensor, per_target: int) -> torch.Tensor:
-    """(B, D) student and teacher poses, `per_target` consecutive rows per target -> (B // per_target,) the squared
-    difference between the mean distance of a target's student poses and that of its teacher poses from the same
-    noises: zero when the student's samples are as spread as the teacher's, wherever each one lands. (Matching the
-    distances pair by pair started 20 times larger than the other terms on the Panda: the teacher's 4- and 16-step
-    runs already differ pair by pair.)"""
-    return (mean_distance(student, student, per_target) - mean_distance(teacher, teacher, per_target)).square()
-
-
-@torch.no_grad()
-def teacher_poses(teacher: IKDiffusion, config: DistillConfig, noise: torch.Tensor, targets: torch.Tensor):
-    """The teacher's clean pose (B, D), in the representation's coordinates, from the noise x_T (B, D)."""
-    trajectory = teacher.sample(
-        targets,
-        sampler=config.teacher_sampler,
-        steps=config.teacher_steps,
-        spacing=config.teacher_spacing,
-        initial_noise=noise[:, None],
-    )
-    joints = trajectory.headings[:, 0]
-    if config.refine_teacher_steps:
-        joints = refined_in_place(teacher.arm, joints, targets, config.refine_teacher_steps)
-    return teacher.representation.encode(joints).clone()  # a plain tensor, not an inference one
 
 
 @torch.no_grad()
@@ -314,15 +264,20 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         student.load_state_dict(starting_student(config.init, teacher_path, student), strict=False)
     sampler = student_sampler(student, config)
     optimizer = torch.optim.AdamW(student.parameters(), lr=config.lr, weight_decay=0.0)
-    data_generator = torch.Generator().manual_seed(config.seed)
+    data_generator = torch.Generator(device).manual_seed(config.seed)  # the data is made where the student trains
     step, seconds_before = 0, 0.0
     remove_stale_temporaries(output)
     if config.resume and output.exists():
         payload = read_checkpoint(output)
         student.load_state_dict(model_from_checkpoint(payload, str(output)).state_dict())
         optimizer.load_state_dict(payload["optimizer"])
-        data_generator.set_state(payload["data_generator"])
         step, seconds_before = int(payload["train"]["step"]), float(payload["train"]["seconds"])
+        saved_on = payload["train"].get("data_device", "cpu")  # runs before data was made on the GPU: the CPU
+        if saved_on == device.type:
+            data_generator.set_state(payload["data_generator"])
+        else:  # a generator's state is its device's kind: a fresh stream, as `ikdp.train` takes on another device
+            data_generator.manual_seed(config.seed + 1_000_003 * step)
+            print(f"resuming on {device.type}, saved on {saved_on}: a new data stream")
         budget = budget.resumed(payload["train"], step, seconds_before)  # a longer budget decays on from here
         print(f"resuming {output} at step {step}", file=sys.stderr)
 
@@ -344,6 +299,7 @@ def distill(config: DistillConfig, command: str = "") -> Path:
         metrics["step"] = step
         record = {**asdict(config), "step": step, "seconds": elapsed(), "finished": final, "lr_decay": budget.record()}
         record |= {"torch_version": str(torch.__version__), "threads": torch.get_num_threads(), "command": command}
+        record["data_device"] = device.type  # where the data stream saved below draws
         save_checkpoint(
             output,
             {
@@ -365,59 +321,32 @@ def distill(config: DistillConfig, command: str = "") -> Path:
                     "spacing": config.spacing,
                 },
                 "state_dict": student.state_dict(),
-                "optimizer": optimizer.state_dict(),
+                "optimizer": plain_optimizer_state(optimizer),
                 "data_generator": data_generator.get_state(),
             },
         )
         writer.add_scalar("eval/tip_error_median", metrics.get("tip_error_median", float("nan")), step)
 
-    arm = student.arm
     # a reference pool is drawn here, before the first step, or read where an earlier run of this teacher drew it
     stream = PoseStream(teacher, prior, config, device, teacher_path, pool_folder=output.parent / "reference_pools")
+    loss = DistillLoss(student, teacher, sampler, config)
+    draw = lambda: stream.draw(data_generator)  # noqa: E731  (poses (B, J), the reference's samples or None)
+    if graph_applies(config.graph, device, world_size=1) and not runs_the_teacher(config):
+        steps = GraphedSteps(loss, student, draw, data_generator, optimizer)
+    else:
+        steps = EagerSteps(loss, student, draw, data_generator, optimizer)
     interrupted = False
     progress = tqdm(total=config.steps, initial=step, desc=output.stem, dynamic_ncols=True)
     student.train()
     try:
         while not budget.finished(step, elapsed()):
-            for group in optimizer.param_groups:
-                group["lr"] = config.lr * budget.lr_factor(step, elapsed())
-            per_target = config.noises_per_target  # each target's poses on consecutive rows
-            joints, reference = stream.draw(data_generator)  # (B, J); the DDPM's samples (B, D) or None
-            noise = torch.randn((config.batch, student.representation.dim), generator=data_generator)  # x_T (B, D)
-            noise = noise.to(device)
-            targets = arm.end_effector(joints)  # (B, target_dim)
-            pose = unrolled_student(student, sampler, noise, targets)  # (B, D)
-            consistency, tip_miss = student.consistency_miss(pose, joints, targets)
-            loss = config.tip_loss_weight * consistency.mean()
-            if config.tip_distance_weight > 0:
-                loss = loss + config.tip_distance_weight * fk_distance(consistency, arm.span).mean()
-            match, spread = pose.new_zeros(1), pose.new_zeros(1)
-            if config.match_weight > 0 or config.spread_weight > 0:  # both need the teacher's ODE endpoint
-                goal = teacher_poses(teacher, config, noise, targets)  # (B, D)
-                match = ((pose - goal) ** 2).mean(-1)  # (B,)
-                loss = loss + config.match_weight * match.mean()
-                if per_target > 1:
-                    spread = spread_miss(pose, goal, per_target)
-            loss = loss + config.spread_weight * spread.mean()
-            distribution = match.new_zeros(1)
-            if reference is not None:
-                distribution = energy_distance(pose, reference, per_target)
-                loss = loss + config.distribution_weight * distribution.mean()
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
-            optimizer.step()
+            _, losses = steps(config.lr * budget.lr_factor(step, elapsed()))
             step += 1
             if step % 10 == 0:
-                writer.add_scalar("train/loss", float(loss.detach()), step)
-                writer.add_scalar("train/teacher_match", float(match.mean().detach()), step)
-                writer.add_scalar("train/spread_miss", float(spread.mean().detach()), step)
-                writer.add_scalar("train/energy_distance", float(distribution.mean().detach()), step)
-                writer.add_scalar("train/tip_distance", float(tip_miss.sqrt().mean().detach()), step)
-                writer.add_scalar("train/lr", optimizer.param_groups[0]["lr"], step)
-                progress.set_postfix(
-                    loss=f"{float(loss.detach()):.4f}", tip=f"{float(tip_miss.detach().sqrt().mean()):.4f}"
-                )
+                for name in ("loss", "teacher_match", "spread_miss", "energy_distance", "tip_distance"):
+                    writer.add_scalar(f"train/{name}", float(losses[name]), step)
+                writer.add_scalar("train/lr", float(optimizer.param_groups[0]["lr"]), step)
+                progress.set_postfix(loss=f"{float(losses['loss']):.4f}", tip=f"{float(losses['tip_distance']):.4f}")
             progress.update(1)
             if step % config.save_every == 0:
                 save(final=False)

@@ -70,9 +70,14 @@ def teacher_samples(
     """One sample of the teacher's full DDPM per row of `targets` (B, target_dim), in the representation's
     coordinates (B, D), after `refine_steps` damped least-squares steps in its own mode: the reference distribution
     of the distribution term."""
-    noise = torch.randn((len(targets), 1, teacher.representation.dim), generator=generator).to(targets.device)
-    on_cpu = targets.device.type == "cpu"  # the data stream's generator is a CPU one; elsewhere the device's own
-    trajectory = teacher.sample(targets, sampler="ddpm", initial_noise=noise, generator=generator if on_cpu else None)
+    shape = (len(targets), 1, teacher.representation.dim)
+    noise = torch.randn(shape, generator=generator, device=generator.device).to(targets.device)
+    # the DDPM's own noise from the same generator where it lives with the targets (the training's data stream);
+    # a pool's CPU generator for a GPU's targets: the device's own
+    same_device = torch.empty(0, device=generator.device).device == targets.device
+    trajectory = teacher.sample(
+        targets, sampler="ddpm", initial_noise=noise, generator=generator if same_device else None
+    )
     joints = trajectory.headings[:, 0]
     if refine_steps:
         joints = refined_in_place(teacher.arm, joints, targets, refine_steps)
@@ -100,15 +105,17 @@ class PoseStream:
         self.reference = config.reference  # "teacher": its DDPM's samples; "posterior": rejection from the prior
         self.pool = None
         if self.with_reference and config.reference_pool:
-            self.pool = self.kept_pool(config.reference_pool, config.seed + 1, teacher_path, pool_folder)
+            pool = self.kept_pool(config.reference_pool, config.seed + 1, teacher_path, pool_folder)
+            self.pool = tuple(part.to(device) for part in pool)  # on the training device once, not a copy per step
 
     def draw(self, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Each step's data, drawn from `generator` on its own device (the training device's: nothing is copied)."""
         count = self.batch // self.per_target
         if self.pool is not None:
             joints, samples = self.pool
-            picked = torch.randint(len(joints), (count,), generator=generator)
-            rows = joints[picked].repeat_interleave(self.per_target, dim=0).to(self.device)
-            return rows, samples[picked].flatten(0, 1).to(self.device)
+            picked = torch.randint(len(joints), (count,), generator=generator, device=generator.device)
+            rows = joints[picked].repeat_interleave(self.per_target, dim=0)
+            return rows, samples[picked].flatten(0, 1)
         arm = self.teacher.arm
         rows = self.prior.sample(count, arm, generator=generator).repeat_interleave(self.per_target, dim=0)
         rows = rows.to(self.device)

@@ -9,18 +9,9 @@ import torch
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.describe import describe
-from ikdp.distill import (
-    SKIP_WEIGHTS,
-    DistillConfig,
-    distill,
-    energy_distance,
-    main,
-    refined_in_place,
-    spread_miss,
-    student_network,
-    student_sampler,
-    unrolled_student,
-)
+from ikdp.distill import SKIP_WEIGHTS, DistillConfig, distill, main, student_network
+from ikdp.distill_reference import energy_distance, refined_in_place
+from ikdp.distill_step import spread_miss, student_sampler, unrolled_student
 from ikdp.train import parse_config
 
 
@@ -219,11 +210,11 @@ def test_a_run_with_the_distribution_term_samples_the_teachers_ddpm(tiny_checkpo
 
 
 def test_without_the_match_term_the_teachers_ode_is_not_run(tiny_checkpoint, tmp_path, monkeypatch):
-    import ikdp.distill as distill_module
+    import ikdp.distill_step as step_module
 
     calls = []
-    real = distill_module.teacher_poses
-    monkeypatch.setattr(distill_module, "teacher_poses", lambda *a: calls.append(len(a[2])) or real(*a))
+    real = step_module.teacher_poses
+    monkeypatch.setattr(step_module, "teacher_poses", lambda *a: calls.append(len(a[2])) or real(*a))
     config = small_config(tmp_path, tiny_checkpoint, noises_per_target=4, distribution_weight=1.0, steps=2)
     distill(config)
     assert calls == [16, 16]  # with the match term: the teacher's ODE once a step
@@ -346,7 +337,7 @@ def test_refining_the_reference_needs_the_distribution_term(tmp_path, capsys):
 
 
 def test_the_distance_form_of_the_fk_miss_keeps_pulling_where_the_square_fades():
-    from ikdp.distill import fk_distance
+    from ikdp.distill_step import fk_distance
 
     span = 1.3
     misses = torch.tensor([0.0, 5e-4, 0.02], requires_grad=True)  # metres: none, half a millimetre, two centimetres
