@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 import torch
+from gpu_machine import panda_chain
 
 from ikdp.train import TrainConfig, train
 
@@ -37,7 +38,7 @@ def tiny_chain_checkpoint(tmp_path_factory):
     """A Panda pose model (7 joints, T = 10) trained for a few steps: loadable, not accurate."""
     folder = tmp_path_factory.mktemp("tiny_chain")
     config = TrainConfig(
-        robot="panda",
+        **panda_chain(),  # by name, or from the URDF carried to a GPU machine that lacks example-robot-data
         steps=5,
         batch=32,
         hidden=32,

@@ -58,7 +58,7 @@ save_checkpoint(Path('runs/panda_gpu_slim.pt'), {key: payload[key] for key in ke
 tar czf "$OUT/logs.tgz" runs/logs 2>/dev/null
 
 if [ "$(left)" -gt 20 ]; then
-    timeout "$(left)" python3 -m pytest -q --noconftest -p no:cacheprovider tests/test_train_steps.py \
+    timeout "$(left)" python3 -m pytest -q -p no:cacheprovider tests/test_train_steps.py tests/test_distill_steps.py \
         tests/test_cuda_graph.py 2>&1 | tail -25 | tee "$OUT/tests.log"
 fi
 echo "done at ${SECONDS}s"
