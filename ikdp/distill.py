@@ -23,8 +23,8 @@ plus a `distill` record: the teacher, its sampler, and the student's (sampler, s
 `Solver.default_spacing` follows. The poses, the noise and a pool's picks are drawn on the training device
 (`--device cuda`: nothing copied from the CPU per step), and there a step that runs no teacher (the one-step
 recipe's: no match or spread term, the reference from a pool) is replayed from one CUDA graph, as `ikdp.train`'s
-steps are (ikdp/distill_step.py, ikdp/train_steps.py). A tqdm bar shows the loss; TensorBoard logs go beside the checkpoint
-(`<folder>/logs/<stem>`); the checkpoint is written atomically every `--save-every` steps, at the end
+steps are (ikdp/distill_step.py, ikdp/train_steps.py). A tqdm bar shows the loss; TensorBoard logs go beside
+the checkpoint (`<folder>/logs/<stem>`); the checkpoint is written atomically every `--save-every` steps, at the end
 and on Ctrl-C or SIGTERM; `--resume` continues from it; `--minutes` bounds the wall clock.
 """
 
@@ -43,6 +43,7 @@ import torch
 from tqdm import tqdm
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
+from ikdp.device import checked_device
 from ikdp.distill_reference import PoseStream
 from ikdp.distill_step import DistillLoss, runs_the_teacher, student_sampler
 from ikdp.model import IKDiffusion, ModelConfig
@@ -141,6 +142,7 @@ def validate(config: DistillConfig) -> None:
     for name, value in nonnegative.items():
         if value < 0:
             raise ValueError(f"{name}: got {value}, expected 0 or more")
+    checked_device(config.device)  # before the teacher loads: the option as the user wrote it, in one line
     if config.batch % config.noises_per_target:
         raise ValueError(
             f"batch: got {config.batch}, expected a multiple of noises_per_target {config.noises_per_target}"

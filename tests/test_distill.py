@@ -110,6 +110,7 @@ def test_minutes_end_the_run_before_its_steps(tiny_checkpoint, tmp_path):
         (["--match-weight", "0"], "match_weight: with 0 nothing ties the student to its teacher"),
         (["--match-weight", "-1"], "match_weight: got -1.0, expected 0 or more"),
         (["--dls-skip"], "dls_skip: for a robot's chain_film denoiser; ikdp_n4 has 'film'"),
+        (["--device", "cuda:7"], "device: got 'cuda:7'"),  # as typed, before the teacher loads
     ],
 )
 def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, message):
