@@ -3,11 +3,12 @@
 # has its share of a deadline ($DEADLINE seconds from the start, default 540), so a run cut short still brings back
 # what it finished:
 #   1. steps per second of the old loop (data from the CPU), the eager loop (data on the GPU) and --graph, with the
-#      weights' drift after the same steps (benchmarks/gpu/train_graph.py);
+#      weights' drift after the same steps (benchmarks/gpu/train_graph.py), and the same of ikdp.distill's one-step
+#      recipe, eager against graph (benchmarks/gpu/distill_graph.py);
 #   2. a Panda teacher trained by `ikdp.train --device cuda --graph` for the minutes left (without --graph if the
 #      graph fails at its start), its solving weights in 15 MB parts (measured afterwards on a CPU, where the
 #      benchmark's 1000 held-out targets are);
-#   3. the training step's and the captured solve's CUDA tests, in the time that remains.
+#   3. the training and distillation steps' and the captured solve's CUDA tests, in the time that remains.
 # Everything goes to $OUT. Run from the repository root on the device machine, with .whl (tyro and
 # pytorch_kinematics wheels) and .gpu carried: it has no example-robot-data, so the Panda's URDF goes as
 # .gpu/example-robot-data/robots/panda_description/urdf/panda.urdf (under that package's own folder names, the
@@ -29,6 +30,9 @@ export PYTHONUNBUFFERED=1
     2>&1 | tee "$OUT/bench.log"
 
 STEPS=50 WINDOWS=3 timeout 100 python3 -m benchmarks.gpu.train_graph "$PANDA" "$DEVICE" 2>&1 | tail -14 \
+    | tee -a "$OUT/bench.log"
+
+timeout 120 python3 -m benchmarks.gpu.distill_graph ikdp_panda_gpu "$DEVICE" 2>&1 | grep -v "reference pool" | tail -5 \
     | tee -a "$OUT/bench.log"
 
 mkdir -p runs
