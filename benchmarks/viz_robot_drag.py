@@ -3,6 +3,7 @@
     python -m benchmarks.viz_robot_drag                  # ikdp_panda, 30 moves, one torch thread
     python -m benchmarks.viz_robot_drag --moves 5        # a smoke run
     python -m benchmarks.viz_robot_drag --setups         # with its student: every setup below in one run
+    python -m benchmarks.viz_robot_drag --setups --models ikdp_panda ikdp_panda_gpu   # each model's, one run
 
 `--setups` measures, in one process on the same moves, the viewer as it opens the Panda
 (`student`: its distilled few-step student as the sampler, drag updates and released moves that
@@ -42,10 +43,18 @@ from ikdp_viz.student import STUDENT, find_student
 RESULTS = Path(__file__).resolve().parent / "results" / "viz_robot_drag.json"
 
 
-def measure(moves: int, *, previews: bool | None, student=None, sampler: str | None = None, drag: bool = True) -> dict:
-    """Per move: ms to the first frame drawn and to the full solve drawn."""
+def measure(
+    moves: int,
+    *,
+    previews: bool | None,
+    student=None,
+    sampler: str | None = None,
+    drag: bool = True,
+    model: str = "ikdp_panda",
+) -> dict:
+    """Per move: ms to the first frame drawn and to the full solve drawn, for the shipped robot model `model`."""
     torch.set_num_threads(1)
-    solver = ikdp.load(shipped_checkpoint("ikdp_panda"))
+    solver = ikdp.load(shipped_checkpoint(model))
     with contextlib.redirect_stdout(io.StringIO()):
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     options = {} if previews is None else {"previews": previews}
@@ -79,23 +88,28 @@ def summary(values: list[float]) -> dict[str, float]:
     return {"median": float(np.median(array)), "p95": float(np.percentile(array, 95)), "max": float(array.max())}
 
 
-def setups(moves: int, student_path: str | None = None) -> dict[str, dict]:
-    """Every setup of `--setups`, in one run: label -> measure()'s lists. `student_path`: a student of ikdp_panda
-    to use instead of the shipped one."""
+def setups(moves: int, student_path: str | None = None, model: str = "ikdp_panda") -> dict[str, dict]:
+    """Every setup of `--setups` for the shipped robot model `model`, in one run: label -> measure()'s lists.
+    `student_path`: a student of `model` to use instead of the shipped one."""
     if student_path is not None:
         student = ikdp.load(student_path)
     else:
-        student = find_student(ikdp.load(shipped_checkpoint("ikdp_panda")), shipped_dir())
+        student = find_student(ikdp.load(shipped_checkpoint(model)), shipped_dir())
     if student is None:
-        raise SystemExit("viz_robot_drag: no shipped student of ikdp_panda (checkpoints/*.pt with its distill record)")
+        raise SystemExit(f"viz_robot_drag: no shipped student of {model} (checkpoints/*.pt with its distill record)")
+    prefix = "" if model == "ikdp_panda" else f"{model}: "  # the rows measured before this option keep their labels
     return {
-        "student, drag updates": measure(moves, previews=None, student=student, sampler=STUDENT),
-        "student, released moves (animated)": measure(
-            moves, previews=None, student=student, sampler=STUDENT, drag=False
+        f"{prefix}student, drag updates": measure(moves, previews=None, student=student, sampler=STUDENT, model=model),
+        f"{prefix}student, released moves (animated)": measure(
+            moves, previews=None, student=student, sampler=STUDENT, drag=False, model=model
         ),  # fmt: skip
-        "teacher DDPM-100 + the student's preview": measure(moves, previews=None, student=student, sampler="ddpm"),
-        "teacher DDPM-100 + DPM-Solver++(2M)-5 preview (no student)": measure(moves, previews=None, sampler="ddpm"),
-        "teacher DDPM-100, no preview": measure(moves, previews=False, sampler="ddpm"),
+        f"{prefix}teacher DDPM-100 + the student's preview": measure(
+            moves, previews=None, student=student, sampler="ddpm", model=model
+        ),  # fmt: skip
+        f"{prefix}teacher DDPM-100 + DPM-Solver++(2M)-5 preview (no student)": measure(
+            moves, previews=None, sampler="ddpm", model=model
+        ),  # fmt: skip
+        f"{prefix}teacher DDPM-100, no preview": measure(moves, previews=False, sampler="ddpm", model=model),
     }
 
 
@@ -105,10 +119,13 @@ def main() -> None:
     parser.add_argument("--label", default="this checkout")
     parser.add_argument("--no-previews", action="store_true", help="the full solve alone (this checkout's switch)")
     parser.add_argument("--setups", action="store_true", help="the student and the teacher's setups, one run")
-    parser.add_argument("--student", default=None, help="with --setups: this student of ikdp_panda, not the shipped")
+    parser.add_argument("--student", default=None, help="with --setups: this student of the model, not the shipped")
+    parser.add_argument("--models", nargs="+", default=["ikdp_panda"], help="with --setups: these shipped models")
     args = parser.parse_args()
     if args.setups:
-        results = setups(args.moves, args.student)
+        results = {}
+        for model in args.models:
+            results |= setups(args.moves, args.student, model)
     else:
         results = {args.label: measure(args.moves, previews=False if args.no_previews else None)}
     print(f"Panda drag, K = 16, one torch thread, {args.moves} moves ({cpu_model()})")
