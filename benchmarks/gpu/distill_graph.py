@@ -15,15 +15,14 @@ from __future__ import annotations
 
 import json
 import os
-import statistics
 import sys
-import time
 import traceback
 from pathlib import Path
 
 import torch
 
 import ikdp
+from benchmarks.gpu.step_rate import steps_per_second
 from ikdp.checkpoint import read_checkpoint
 from ikdp.distill import DistillConfig, student_network
 from ikdp.distill_reference import PoseStream
@@ -63,25 +62,6 @@ def runner(kind):
     return kind(loss, student, lambda: stream.draw(generator), generator, optimizer), student
 
 
-def synchronize() -> None:
-    if DEVICE.type == "cuda":
-        torch.cuda.synchronize(DEVICE)
-
-
-def steps_per_second(steps) -> float:
-    for _ in range(10):  # warm-up (the graph's recording among them)
-        steps(1e-4)
-    rates = []
-    for _ in range(WINDOWS):
-        synchronize()
-        started = time.perf_counter()
-        for _ in range(STEPS):
-            steps(1e-4)
-        synchronize()
-        rates.append(STEPS / (time.perf_counter() - started))
-    return statistics.median(rates)
-
-
 results: dict = {
     "gpu": torch.cuda.get_device_name(DEVICE) if DEVICE.type == "cuda" else "cpu",
     "torch": torch.__version__,
@@ -91,7 +71,7 @@ results: dict = {
 }
 for name, kind in (("eager", EagerSteps), ("graph", GraphedSteps)):
     try:
-        results["rows"][name] = {"steps_per_second": steps_per_second(runner(kind)[0])}
+        results["rows"][name] = {"steps_per_second": steps_per_second(runner(kind)[0], DEVICE, STEPS, WINDOWS)}
     except Exception:
         results["rows"][name] = {"error": traceback.format_exc()[-1500:]}
     print(f"{name:8s} {json.dumps(results['rows'][name])}", flush=True)

@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import json
 import os
-import statistics
 import sys
-import time
 import traceback
 from pathlib import Path
 
 import torch
 
+from benchmarks.gpu.step_rate import steps_per_second
 from ikdp.priors import make_prior
 from ikdp.train import TrainConfig, TrainingLoss, build_model, with_arm_defaults
 from ikdp.train_steps import EagerSteps, GraphedSteps
@@ -38,11 +37,6 @@ ARMS = {
     "panda (GPU recipe)": dict(urdf=URDF, ee_link="panda_hand", device="cuda"),
     "planar N=4": dict(joints=4),
 }
-
-
-def synchronize() -> None:
-    if DEVICE.type == "cuda":
-        torch.cuda.synchronize(DEVICE)
 
 
 def trainer(options: dict, mode: str, seed: int = 0):
@@ -66,20 +60,6 @@ def trainer(options: dict, mode: str, seed: int = 0):
     return EagerSteps(loss, model, draw, generator, optimizer, averaged), model, config
 
 
-def steps_per_second(steps) -> float:
-    for _ in range(10):  # warm-up (the graph's recording among them)
-        steps(1e-4)
-    rates = []
-    for _ in range(WINDOWS):
-        synchronize()
-        started = time.perf_counter()
-        for _ in range(STEPS):
-            steps(1e-4)
-        synchronize()
-        rates.append(STEPS / (time.perf_counter() - started))
-    return statistics.median(rates)
-
-
 def weights(model) -> torch.Tensor:
     return torch.cat([parameter.detach().flatten() for parameter in model.parameters()])
 
@@ -97,7 +77,11 @@ for arm_name, options in ARMS.items():
         values: dict = {}
         try:
             steps, model, config = trainer(options, mode)
-            values = {"batch": config.batch, "hidden": config.hidden, "steps_per_second": steps_per_second(steps)}
+            values = {
+                "batch": config.batch,
+                "hidden": config.hidden,
+                "steps_per_second": steps_per_second(steps, DEVICE, STEPS, WINDOWS),
+            }
         except Exception:
             values["error"] = traceback.format_exc()[-1500:]
         results["rows"][label] = values
