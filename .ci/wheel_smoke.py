@@ -94,7 +94,7 @@ def robot(timeout: float = 120.0) -> None:
     """The README's robot view (`python -m ikdp_viz --ckpt ikdp_panda`) with only [viz,robots] installed.
 
     In this process, so that the scene can be read: a dependency that no extra lists fails here
-    (issue 19: trimesh's hull needed scipy, which only [test] brought, and the Panda drew nothing).
+    (trimesh's hull once needed scipy, which only [test] brought, and the Panda drew nothing).
     """
     installed_not_cloned()
     import contextlib

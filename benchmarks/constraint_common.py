@@ -1,12 +1,41 @@
-"""What the parts of benchmarks/constraints.py share: timing, the pose tolerance, a measured row, PseudoInverseIK."""
+"""What the parts of benchmarks/constraints.py share: the command line, timing, the pose tolerance, a measured row,
+PseudoInverseIK. A leaf: the parts import it, it imports none of them."""
 
 from __future__ import annotations
 
 import functools
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
+
+RESULTS = Path(__file__).resolve().parent / "results" / "constraints.json"
+
+
+@dataclass(frozen=True)
+class ConstraintBenchmarkConfig:
+    checkpoint: str = "ikdp_panda"  # the Panda pose model
+    planar_checkpoint: str = "ikdp_n4"  # the planar model of part 4
+    targets: int = 1000  # Panda targets of parts 1 and 2 (a 2-core CPU: fewer when time is short)
+    planar_targets: int = 1000  # planar targets of part 4
+    samples: int = 16  # K
+    refine_steps: int = 5  # DLS steps after sampling
+    sampler: str = "dpmpp2m:10"  # name[:steps] of IKDP's sampler
+    planar_sampler: str = "dpmpp2m:10"
+    obstacle_extra_samplers: tuple[str, ...] = ("ddpm",)  # more guided IKDP rows in the obstacle part
+    random_start_steps: tuple[int, ...] = (5, 10, 20)  # constrained DLS steps from 16 uniform random starts
+    restart_steps: int = 20  # parts 1, 2 and 3: one more IKDP row with solve's restart_steps (0: no such row)
+    certified_placement: bool = True  # obstacles: only sphere pairs that leave a certified free solution
+    pk_retries: int = 16
+    pk_iterations: int = 30
+    track_circles: int = 5  # circles certified reachable all the way round: the ready pose, then random starts
+    track_points: int = 200  # targets per circle
+    track_radius: float = 0.1  # metres
+    track_weight: float = 0.6  # NearPose's pull while tracking
+    parts: tuple[str, ...] = ("obstacles", "locked", "tracking", "partial", "planar")
+    seed: int = 0
+    output: Path = field(default=RESULTS)
 
 
 def timed(run):

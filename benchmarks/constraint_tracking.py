@@ -1,4 +1,4 @@
-"""Panda, tracking circles (issue 20): part 3 of benchmarks/constraints.py, `--parts tracking`.
+"""Panda, tracking circles: part 3 of benchmarks/constraints.py, `--parts tracking`.
 
 Circles of `track_radius` in a horizontal plane through a start pose's hand, `track_points`
 targets at that hand's fixed orientation, followed from the start pose: the largest joint jump
@@ -12,30 +12,26 @@ limits. The first circle starts from Franka's ready pose; then random starts awa
 are drawn until `track_circles` circles are certified, and the rejected draws are counted. The
 first rejected circle is kept as a separate stress row: part of it is out of reach at that
 orientation, its certified share is the ceiling any tracker can reach, and it measures what a
-tracker does across the unreachable stretch, not the target of the issue.
+tracker does across the unreachable stretch, apart from the certified circles the tracking target is judged on.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING
 
 import torch
 
-from benchmarks.constraint_common import run_pseudo_inverse, timed, within_pose_tolerance
+from benchmarks.constraint_common import ConstraintBenchmarkConfig, run_pseudo_inverse, timed, within_pose_tolerance
 from benchmarks.robot_benchmark import parse_sampler
 from ikdp.tracking import branch_switches, needed_jumps
-
-if TYPE_CHECKING:
-    from benchmarks.constraints import ConstraintBenchmarkConfig
 
 READY_POSE = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)  # Franka's "ready" configuration
 CERTIFY_STARTS = 64  # uniform random starts per target of the independent reachability check
 CERTIFY_ITERATIONS = 100  # PseudoInverseIK iterations of that check (the tracked baseline gets pk_iterations)
 CERTIFY_ATTEMPTS = 3  # fresh start sets tried when PseudoInverseIK meets a singular matrix
 MAX_DRAWS = 100  # random circles drawn at most before the benchmark gives up finding certified ones
-JUMP_BOUND = 0.1  # radians: the issue's largest allowed joint jump between consecutive solutions
+JUMP_BOUND = 0.1  # radians: the largest joint jump a tracked path may take between consecutive solutions
 
 
 def reachable_targets(arm, path: torch.Tensor, generator: torch.Generator) -> torch.Tensor:

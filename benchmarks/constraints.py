@@ -1,4 +1,4 @@
-"""Constraints at sampling time, measured (issue 20): obstacles, locked joints, tracking, a planar disc.
+"""Constraints at sampling time, measured: obstacles, locked joints, tracking, a planar disc.
 
     OMP_NUM_THREADS=1 python -m benchmarks.constraints --targets 1000
 
@@ -34,14 +34,19 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import asdict
 
 import torch
 import tyro
 
 import ikdp
-from benchmarks.constraint_common import row, run_pseudo_inverse, timed, within_pose_tolerance
+from benchmarks.constraint_common import (
+    ConstraintBenchmarkConfig,
+    row,
+    run_pseudo_inverse,
+    timed,
+    within_pose_tolerance,
+)
 from benchmarks.constraint_tracking import print_tracking, tracking_part
 from benchmarks.robot_benchmark import parse_sampler
 from ikdp.evaluation.machine import machine_description
@@ -49,7 +54,6 @@ from ikdp.guidance import ConstraintSet
 from ikdp.link_spheres import link_spheres
 from ikdp.refine import damped_least_squares
 
-RESULTS = Path(__file__).resolve().parent / "results" / "constraints.json"
 PLACEMENT_ATTEMPTS = 100  # disc placements tried on one planar pose before the pose is drawn again
 PINNED_LINKS = ("panda_link0", "panda_link1", "panda_link6", "panda_link7", "panda_hand")  # fixed by the target
 WITNESS_STARTS = 64  # random starts per target of the independent solve that certifies a free solution exists
@@ -57,31 +61,6 @@ WITNESS_STEPS = 30  # its unconstrained DLS steps
 PLACEMENT_DRAWS = 32  # sphere pairs drawn per target; the first one that leaves a certified free solution is kept
 CANDIDATES = 8 * PLACEMENT_DRAWS  # single spheres drawn per target (those touching a pinned link are dropped)
 WITNESS_CLEARANCE = 0.01  # metres a certifying solution keeps from every sphere: not a knife-edge feasibility
-
-
-@dataclass(frozen=True)
-class ConstraintBenchmarkConfig:
-    checkpoint: str = "ikdp_panda"  # the Panda pose model
-    planar_checkpoint: str = "ikdp_n4"  # the planar model of part 4
-    targets: int = 1000  # Panda targets of parts 1 and 2 (a 2-core CPU: fewer when time is short)
-    planar_targets: int = 1000  # planar targets of part 4
-    samples: int = 16  # K
-    refine_steps: int = 5  # DLS steps after sampling
-    sampler: str = "dpmpp2m:10"  # name[:steps] of IKDP's sampler
-    planar_sampler: str = "dpmpp2m:10"
-    obstacle_extra_samplers: tuple[str, ...] = ("ddpm",)  # more guided IKDP rows in the obstacle part
-    random_start_steps: tuple[int, ...] = (5, 10, 20)  # constrained DLS steps from 16 uniform random starts
-    restart_steps: int = 20  # parts 1, 2 and 3: one more IKDP row with solve's restart_steps (0: no such row)
-    certified_placement: bool = True  # obstacles: only sphere pairs that leave a certified free solution
-    pk_retries: int = 16
-    pk_iterations: int = 30
-    track_circles: int = 5  # circles certified reachable all the way round: the ready pose, then random starts
-    track_points: int = 200  # targets per circle
-    track_radius: float = 0.1  # metres
-    track_weight: float = 0.6  # NearPose's pull while tracking
-    parts: tuple[str, ...] = ("obstacles", "locked", "tracking", "partial", "planar")
-    seed: int = 0
-    output: Path = field(default=RESULTS)
 
 
 def refined_random_starts(arm, goals: torch.Tensor, dls_steps: int, task) -> tuple[float, torch.Tensor]:

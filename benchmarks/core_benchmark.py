@@ -1,6 +1,6 @@
 """Core v2 benchmark: the fast reverse loop, the few-step samplers, and batch solving beside pytorch_kinematics.
 
-Run from the repository root, with one torch thread (docs/BENCHMARKS.md, "Core v2", has the last table):
+Run from the repository root, with one torch thread (the last run: benchmarks/results/core.json):
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python -m benchmarks.core_benchmark
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python -m benchmarks.core_benchmark --quick   # a smoke test

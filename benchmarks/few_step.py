@@ -1,6 +1,7 @@
-"""Few-step sampling (issue 27): raw accuracy and diversity per network evaluation, by timestep grid.
+"""Few-step sampling: raw accuracy and diversity per network evaluation, by timestep grid.
 
-    OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda ikdp_panda_cpu ikdp_n4
+    OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda ikdp_z1 ikdp_n4
+    OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda --samplers ddpm student ddim:4
     OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints runs/n4_student.pt --samplers ddpm ddim:2
     OMP_NUM_THREADS=1 python -m benchmarks.few_step --checkpoints ikdp_panda --precisions float32 int8
 
@@ -31,12 +32,13 @@ from benchmarks.robot_benchmark import parse_sampler, write
 from ikdp.evaluation.machine import machine_description
 
 RESULTS = Path(__file__).resolve().parent / "results" / "few_step.json"
+GRIDS_OF_THEIR_OWN = {"ddpm": ("uniform",), "student": (None,)}  # spacing None: the student's distilled grid
 FEW_STEP_SAMPLERS = tuple(f"{name}:{steps}" for name in ("ddim", "dpmpp2m", "ancestral") for steps in (2, 4, 8, 16))
 
 
 @dataclass(frozen=True)
 class FewStepConfig:
-    checkpoints: tuple[str, ...] = ("ikdp_panda", "ikdp_panda_cpu", "ikdp_n4")  # paths or shipped names
+    checkpoints: tuple[str, ...] = ("ikdp_panda", "ikdp_z1", "ikdp_n4")  # paths or shipped names
     precisions: tuple[str, ...] = ("float32",)  # each checkpoint at each (int8: robots only, ikdp.load's precision)
     samplers: tuple[str, ...] = ("ddpm",) + FEW_STEP_SAMPLERS  # name[:steps]
     spacings: tuple[str, ...] = ("uniform", "quadratic")  # timestep grids compared (ddpm: all T steps, one row)
@@ -93,7 +95,9 @@ def measure(solver, config: FewStepConfig) -> dict:
     rows = {}
     for text in config.samplers:
         name, steps = parse_sampler(text)
-        for spacing in config.spacings if name != "ddpm" else ("uniform",):
+        # the DDPM runs every timestep; a folded student (sampler "student") its own distilled grid
+        grids = GRIDS_OF_THEIR_OWN.get(name, config.spacings)
+        for spacing in grids:
             row = raw_row(solver, targets, name, steps, spacing, config.seed)
             diverse = solver.solve(
                 diversity_targets,
@@ -104,7 +108,7 @@ def measure(solver, config: FewStepConfig) -> dict:
                 generator=torch.Generator().manual_seed(2),
             )
             row["diversity_rad"] = mean_pairwise_distance(solver.arm, diverse.raw_angles)
-            rows[f"{text} {spacing}" if name != "ddpm" else text] = row
+            rows[f"{text} {spacing}" if name not in GRIDS_OF_THEIR_OWN else text] = row
     reference = rows.get("ddpm", {}).get("diversity_rad")
     for row in rows.values():
         row["diversity_vs_ddpm"] = row["diversity_rad"] / reference if reference else math.nan

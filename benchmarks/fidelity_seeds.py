@@ -1,10 +1,10 @@
 """Fidelity over several seeds, paired: is a few-step sampler as faithful as the DDPM, beyond one seed's luck?
 
-    OMP_NUM_THREADS=1 python -m benchmarks.fidelity_seeds --rows ikdp_n4_relaxed_mlp@ddpm \
-        ikdp_n4_relaxed_4step@ddim:4:quadratic ikdp_n4_relaxed_mlp@dpmpp2m:16:quadratic --seeds 5
+    OMP_NUM_THREADS=1 python -m benchmarks.fidelity_seeds --rows ikdp_n4_relaxed@ddpm \
+        ikdp_n4_relaxed@student ikdp_n4_relaxed@dpmpp2m:16:quadratic --seeds 5
 
 One seed of benchmarks/fidelity.py draws its targets, reference sets and samples once; the DDPM-80 of
-ikdp_n4_relaxed_mlp read 0.00010 to 0.00135 excess MMD^2 over five seeds, as wide as the gaps
+ikdp_n4_relaxed read 0.00010 to 0.00135 excess MMD^2 over five seeds, as wide as the gaps
 between samplers it was meant to rank. Here every row runs on the same seeds (the same targets and
 references), and each row's excess is set beside the first row's seed by seed: the mean, the
 ratio of the means, and the mean and spread of the paired differences. Prints a table and writes
@@ -30,7 +30,7 @@ RESULTS = Path(__file__).resolve().parent / "results" / "fidelity_seeds.json"
 @dataclass(frozen=True)
 class SeedsConfig:
     # checkpoint@sampler[:steps[:spacing]]; the first row is the baseline of the paired differences
-    rows: tuple[str, ...] = ("ikdp_n4_relaxed_mlp@ddpm", "ikdp_n4_relaxed_4step@ddim:4:quadratic")
+    rows: tuple[str, ...] = ("ikdp_n4_relaxed@ddpm", "ikdp_n4_relaxed@student")
     seeds: int = 5  # seeds 0 .. seeds - 1
     output: Path = field(default=RESULTS)
 

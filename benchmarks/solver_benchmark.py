@@ -1,10 +1,9 @@
 """Solver benchmark: IKDP's accuracy and speed beside damped least squares and pytorch_kinematics.
 
-Run from the repository root (docs/BENCHMARKS.md has the protocol and the last table):
+Run from the repository root (docs/benchmarks.md, "Planar arms", shows the last run's tables):
 
     python -m benchmarks.solver_benchmark              # full sizes, a few minutes on 2 cores
     python -m benchmarks.solver_benchmark --quick      # reduced sizes, a smoke test
-    python -m benchmarks.solver_benchmark --docs-only  # re-render the docs table from the JSON
 
 What it measures, each beside the damped-least-squares baseline from random starts
 (16 restarts x 10 iterations) timed in the same run:
@@ -28,8 +27,8 @@ so the library's import stays out of the process that times IKDP. Without that
 environment the pytorch_kinematics row is skipped with a note.
 
 Results go to benchmarks/results/solver.json (every number, sizes, seeds,
-threads, versions, CPU, date) and to the table section of docs/BENCHMARKS.md,
-between its BEGIN/END markers, so the doc always matches the JSON.
+threads, versions, CPU, date), and the tables are printed; the docs' tables are
+rendered from that JSON by benchmarks/render_docs_tables.py alone.
 """
 
 from __future__ import annotations
@@ -59,8 +58,6 @@ from ikdp.evaluation.machine import cpu_model
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SUCCESS_TOLERANCE = 1e-4  # bone lengths: a target counts as solved when a pose's tip is this close
-DOCS_BEGIN = "<!-- BEGIN solver_benchmark table: written by benchmarks/solver_benchmark.py, do not edit by hand -->"
-DOCS_END = "<!-- END solver_benchmark table -->"
 
 
 @dataclass(frozen=True)
@@ -89,9 +86,7 @@ class BenchmarkConfig:
     seed: int = 0  # targets come from seed; sampler, baseline and pytorch_kinematics starts from seed+1..3
     pk_python: str = "benchmarks/.venv-pk/bin/python"  # the interpreter with pytorch_kinematics; "" skips it
     output: str = "benchmarks/results/solver.json"  # where every number goes
-    docs: str = "docs/BENCHMARKS.md"  # whose table section is rewritten; "" leaves the docs alone
-    quick: bool = False  # reduced sizes (QUICK_SIZES, unless given) for a smoke test; the JSON and docs say so
-    docs_only: bool = False  # measure nothing: re-render the docs table from the JSON at --output
+    quick: bool = False  # reduced sizes (QUICK_SIZES, unless given) for a smoke test; the JSON and table say so
 
 
 QUICK_SIZES = dict(
@@ -320,11 +315,12 @@ def run_pytorch_kinematics(targets: torch.Tensor, lengths, config: BenchmarkConf
 
 
 # ---------------------------------------------------------------------------
-# The issue's targets, the table and the environment
+# The targets the planar solver is held to, the table and the environment
 
 
 def goals(results: dict) -> list[dict]:
-    """Each target of the issue, the number measured for it and whether it is met (None: quick sizes, not judged)."""
+    """Each target the planar solver is held to, the number measured for it and whether it is met (None: quick
+    sizes, not judged)."""
     config = results["config"]
     rows = []
 
@@ -457,7 +453,7 @@ def render_batch(results: dict, baseline: str) -> list[str]:
 
 
 def render_markdown(results: dict) -> str:
-    """The tables of docs/BENCHMARKS.md, from the JSON alone."""
+    """The tables printed after a run, from the JSON alone."""
     config, env = results["config"], results["environment"]
     baseline = f"DLS from random starts, {config['dls_restarts']} starts x {config['dls_iterations']} it."
     lines = [
@@ -472,7 +468,7 @@ def render_markdown(results: dict) -> str:
         "",
         *render_batch(results, baseline),
         "",
-        "**The issue's targets**",
+        "**The targets**",
         "",
         "| target | measured | met |",
         "|---|---|---|",
@@ -481,20 +477,6 @@ def render_markdown(results: dict) -> str:
         met = {True: "yes", False: "**no**", None: "not judged: quick sizes"}[row["met"]]
         lines.append(f"| {row['goal']} | {row['measured']} | {met} |")
     return "\n".join(lines)
-
-
-def rewrite_docs(path: Path, table: str) -> None:
-    """Replace what lies between the BEGIN and END markers of `path` with `table`."""
-    if not path.exists():
-        print(f"docs: {path} not found, table not written")
-        return
-    text = path.read_text()
-    begin, end = text.find(DOCS_BEGIN), text.find(DOCS_END)
-    if begin < 0 or end < begin:
-        print(f"docs: {path} lacks the markers {DOCS_BEGIN!r} ... {DOCS_END!r}, table not written")
-        return
-    path.write_text(text[: begin + len(DOCS_BEGIN)] + "\n" + table + "\n" + text[end:])
-    print(f"docs: table rewritten in {path}")
 
 
 def git_commit() -> str:
@@ -530,12 +512,6 @@ def environment() -> dict:
 def main(argv: list[str] | None = None) -> None:
     config = tyro.cli(BenchmarkConfig, args=argv, description=__doc__.splitlines()[0])
     output = REPO_ROOT / config.output
-    docs = REPO_ROOT / config.docs if config.docs else None
-    if config.docs_only:
-        results = json.loads(output.read_text())
-        if docs:
-            rewrite_docs(docs, render_markdown(results))
-        return
     if config.quick:  # a size given on the command line wins over the quick one
         given = {word[2:].split("=")[0].replace("-", "_") for word in (argv or sys.argv[1:]) if word.startswith("--")}
         config = dataclasses.replace(config, **{name: size for name, size in QUICK_SIZES.items() if name not in given})
@@ -571,8 +547,6 @@ def main(argv: list[str] | None = None) -> None:
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_text(json.dumps(results, indent=2) + "\n")
     print(f"\nresults: {output}")
-    if docs:
-        rewrite_docs(docs, table)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ swings by 10 ms a frame here, so only medians over many rounds resolve a few ms.
   as shipped          the playing frame: 6 trail states, the panel at most 6 times a second
   panel every state   the slider, chart and readouts written with every state
   4 trail states      a lighter trail
-  80-face spheres     the joints and tips as before the fourth session (an extra hidden node each, swapped in)
+  80-face spheres     the joints and tips as 80-face spheres, not the shipped 20 (an extra hidden node each, swapped in)
   nothing written     the last frame stands; only a tiny message keeps the page drawing
   nothing drawn       every node hidden, the same tiny message
 

@@ -1,6 +1,6 @@
 """Viewer latency: gizmo updates at 20 Hz for 30 s, time from each update's arrival to the scene update.
 
-Run from the repository root (docs/VIZ.md quotes the last run):
+Run from the repository root:
 
     python -m benchmarks.viz_latency                    # the full protocol, about 45 s
     python -m benchmarks.viz_latency --seconds 5        # a smoke run
@@ -239,49 +239,6 @@ def print_table(name: str, result: dict, solve_alone: dict) -> None:
     )
 
 
-BEGIN, END = "<!-- BEGIN viz_latency (python -m benchmarks.viz_latency) -->", "<!-- END viz_latency -->"
-
-
-def render_markdown(runs: dict) -> str:
-    """The docs' table of every labelled run in the JSON."""
-    lines = [
-        "| run | load avg | solve alone, median / p95 | mode | arrival -> its scene update, median / p95 "
-        "| arrival -> newest target on screen, median / p95 | drawn newest + late / sent | cancelled / replaced "
-        "| memory growth |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for label, record in runs.items():
-        results, load = record["results"], record["environment"]["load_average_at_start"]
-        alone = results["solve_alone"]
-        for mode in PHASES:
-            result = results[mode]
-            own, every, worker = result["drawn_update_latency"], result["every_update_latency"], result["worker"]
-            lines.append(
-                f"| {label} ({record['environment']['date'][:10]}) | {load:.1f} "
-                f"| {alone['median_ms']:.0f} / {alone['p95_ms']:.0f} ms | {mode} "
-                f"| {own['median_ms']:.0f} / **{own['p95_ms']:.0f}** ms "
-                f"| {every['median_ms']:.0f} / {every['p95_ms']:.0f} ms "
-                f"| {worker['delivered'] - worker['late']} + {worker['late']} / {result['updates_sent']} "
-                f"| {worker['cancelled']} / {worker['replaced']} "
-                f"| {results['memory_mb']['growth']:+.1f} MB |"
-            )
-    return "\n".join(lines)
-
-
-def write_docs(docs: Path, runs: dict) -> None:
-    if not docs.is_file():  # the JSON is written already: say so in one line, no traceback
-        print(f"{docs}: no such file, table not written")
-        return
-    text = docs.read_text()
-    if BEGIN not in text or END not in text:
-        print(f"{docs}: no {BEGIN} ... {END} markers, table not written")
-        return
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    docs.write_text(f"{head}{BEGIN}\n{render_markdown(runs)}\n{END}{tail}")
-    print(f"wrote the table into {docs}")
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -292,14 +249,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--animation", type=float, default=1.0, help="animation duration (s), the app's default")
     parser.add_argument("--output", default="benchmarks/results/viz_latency.json")
     parser.add_argument("--label", default="latest", help="name of this run in the JSON (other labels are kept)")
-    parser.add_argument("--docs", default="docs/VIZ.md", help="markdown whose viz_latency block gets the table")
     parser.add_argument("--stale-grace", type=float, default=None, help="override the worker's stale grace (s)")
     parser.add_argument("--cancel-fraction", type=float, default=None, help="override the worker's cancel fraction")
-    parser.add_argument("--docs-only", action="store_true", help="only re-render the docs table from the JSON")
     args = parser.parse_args(argv)
-    if args.docs_only:
-        write_docs(Path(args.docs), json.loads(Path(args.output).read_text())["runs"])
-        return
     command_line = sys.argv[1:] if argv is None else argv
 
     torch.set_num_threads(1)  # as the CLI runs it
@@ -403,7 +355,6 @@ def main(argv: list[str] | None = None) -> None:
     runs[args.label] = record
     output.write_text(json.dumps({"runs": runs}, indent=2) + "\n")
     print(f"wrote {output} (run {args.label!r})")
-    write_docs(Path(args.docs), runs)
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
-"""A robot's drag: time from a target change to the first new frame on screen (issue 25 deliver 6, issue 27 deliver 3).
+"""A robot's drag: time from a target change to the first new frame on screen.
 
     python -m benchmarks.viz_robot_drag                  # ikdp_panda, 30 moves, one torch thread
     python -m benchmarks.viz_robot_drag --moves 5        # a smoke run
     python -m benchmarks.viz_robot_drag --setups         # with its student: every setup below in one run
-    python -m benchmarks.viz_robot_drag --setups --models ikdp_panda ikdp_panda_gpu   # each model's, one run
+    python -m benchmarks.viz_robot_drag --setups --models ikdp_panda ikdp_n4   # each model's, one run
 
 `--setups` measures, in one process on the same moves, the viewer as it opens the Panda
 (`student`: its distilled few-step student as the sampler, drag updates and released moves that
@@ -36,9 +36,9 @@ import viser
 
 import ikdp
 from ikdp.evaluation.machine import cpu_model
-from ikdp.shipped import shipped_checkpoint, shipped_dir
+from ikdp.shipped import shipped_checkpoint
 from ikdp_viz.app import VizApp
-from ikdp_viz.student import STUDENT, find_student
+from ikdp_viz.student import STUDENT
 
 RESULTS = Path(__file__).resolve().parent / "results" / "viz_robot_drag.json"
 
@@ -94,9 +94,9 @@ def setups(moves: int, student_path: str | None = None, model: str = "ikdp_panda
     if student_path is not None:
         student = ikdp.load(student_path)
     else:
-        student = find_student(ikdp.load(shipped_checkpoint(model)), shipped_dir())
+        student = ikdp.load(shipped_checkpoint(model)).student
     if student is None:
-        raise SystemExit(f"viz_robot_drag: no shipped student of {model} (checkpoints/*.pt with its distill record)")
+        raise SystemExit(f"viz_robot_drag: the shipped {model} holds no student (python -m ikdp.ship --student)")
     prefix = "" if model == "ikdp_panda" else f"{model}: "  # the rows measured before this option keep their labels
     return {
         f"{prefix}student, drag updates": measure(moves, previews=None, student=student, sampler=STUDENT, model=model),

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import torch
 
+from ikdp.arm_inputs import drawing_device, validate_target_rows
 from ikdp.kinematics import (
     forward_kinematics,
     project_to_workspace,
@@ -24,6 +24,7 @@ from ikdp.kinematics import (
     tip_position,
     wrap_angle,
 )
+from ikdp.refine import damped_least_squares
 
 
 def uniform_angles(
@@ -39,34 +40,6 @@ def uniform_angles(
     """
     where = {"device": device} if like is None else {"device": like.device, "dtype": like.dtype}
     return (torch.rand(shape, generator=generator, **where) * 2 - 1) * math.pi
-
-
-def drawing_device(generator: torch.Generator | None) -> torch.device:
-    """Where a draw from `generator` is made: its own device (a training's data on its GPU), else the CPU."""
-    return generator.device if generator is not None else torch.device("cpu")
-
-
-def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
-    """Array-like (B, target_dim) -> float32 tensor; ValueError naming the problem otherwise.
-
-    A 1-D input is refused like any other wrong shape: `[1.0, 2.0]` is ambiguous between one
-    target and two numbers, and silently guessing hides bugs in the caller.
-    """
-    try:
-        if not isinstance(targets, torch.Tensor):
-            targets = np.asarray(targets, dtype=np.float32)  # a list of arrays converts fast this way
-        tensor = torch.as_tensor(targets, dtype=torch.float32)
-    except (TypeError, ValueError, RuntimeError) as error:
-        expected = f"targets: expected numbers of shape (B, {target_dim})"
-        raise ValueError(f"{expected}, could not read them ({error})") from None
-    if tensor.ndim != 2 or tensor.shape[1] != target_dim or tensor.shape[0] == 0:
-        hint = "; wrap one target as [[...]]" if tensor.ndim == 1 else ""
-        raise ValueError(f"targets: expected shape (B, {target_dim}) with B >= 1, got {tuple(tensor.shape)}{hint}")
-    bad_rows = torch.nonzero(~torch.isfinite(tensor).all(dim=1)).flatten()
-    if len(bad_rows):
-        row = int(bad_rows[0])
-        raise ValueError(f"targets: row {row} is {tensor[row].tolist()}, NaN or inf is not a target")
-    return tensor
 
 
 class PlanarArm:
@@ -170,6 +143,19 @@ class PlanarArm:
         """`tip_error`, and no rotation error: a planar target is a point."""
         return self.tip_error(headings, targets), None
 
+    def small_batch_kinematics(self) -> PlanarArm:
+        """The arm itself: its kinematics are closed-form sums over the links already, a few operations for any
+        batch (ChainArm's counterpart fuses a chain's)."""
+        return self
+
+    def refine(self, headings: torch.Tensor, targets: torch.Tensor, *, steps: int = 5, task=None) -> torch.Tensor:
+        """`refine.damped_least_squares` on this arm."""
+        return damped_least_squares(self, headings, targets, steps=steps, task=task)
+
+    def errors_by_effector(self, headings: torch.Tensor, targets: torch.Tensor) -> None:
+        """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""
+        return None
+
     def target_features(self, targets: torch.Tensor) -> torch.Tensor:
         """What a denoiser is conditioned on: the target in units of the reach, (..., 2)."""
         return targets / self.span
@@ -216,4 +202,8 @@ def arm_from_config(config: dict):
         from ikdp.chain_arm import ChainArm  # spatial chains pull in the URDF reader only when used
 
         return ChainArm.from_config(config)
-    raise ValueError(f"arm: unknown kind {kind!r}, expected 'planar' or 'chain'")
+    if kind == "tree":
+        from ikdp.tree_arm import TreeArm
+
+        return TreeArm.from_config(config)
+    raise ValueError(f"arm: unknown kind {kind!r}, expected 'planar', 'chain' or 'tree'")

@@ -25,8 +25,10 @@ from pathlib import Path
 
 import torch
 
-from ikdp.arm import drawing_device, validate_target_rows
+from ikdp.arm_inputs import drawing_device, validate_target_rows
+from ikdp.fused_chain import FusedChain
 from ikdp.kinematics import wrap_angle
+from ikdp.refine import damped_least_squares
 from ikdp.robot_data import installed_copy
 from ikdp.rotations import (
     matrix_to_quaternion,
@@ -141,6 +143,7 @@ class ChainArm:
         self._ee_offset = torch.tensor(ee_offset, dtype=torch.float64)
         self._link_offsets = torch.tensor(link_offsets, dtype=torch.float64).reshape(-1, 4, 4)
         self._constants: dict = {}  # (dtype, device) -> the tensors forward kinematics multiplies by
+        self._fused: FusedChain | None = None  # small_batch_kinematics(), once asked for
 
     # --- construction --------------------------------------------------------------------------
     @classmethod
@@ -250,6 +253,11 @@ class ChainArm:
     @property
     def num_joints(self) -> int:
         return len(self.joint_names)
+
+    @property
+    def ee_links(self) -> list[str]:
+        """The end-effector links, one for a chain (a tree's several: ikdp/tree_arm.py)."""
+        return [self.ee_link]
 
     num_links = num_joints  # moving links, one per joint: PlanarArm's name for the same count
 
@@ -484,6 +492,17 @@ class ChainArm:
             raise ValueError(f"targets: rotation_error needs pose targets (..., 7), got {tuple(targets.shape)}")
         return self.tip_and_rotation_errors(joints, targets)[1]
 
+    def small_batch_kinematics(self) -> FusedChain:
+        """This arm with its kinematics, Jacobian and errors as a few fused operations (ikdp/fused_chain.py):
+        what a solve of a few poses on a CPU refines with; built once."""
+        if self._fused is None:
+            self._fused = FusedChain(self)
+        return self._fused
+
+    def refine(self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int = 5, task=None) -> torch.Tensor:
+        """`refine.damped_least_squares` on this arm (FusedChain.refine: the same, fused, for a few poses)."""
+        return damped_least_squares(self, joints, targets, steps=steps, task=task)
+
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """`position_error` and, for pose targets (..., 7), `rotation_error`, from one float64 kinematics pass."""
         rotation, position = self.end_effector_frame(self._as_joints(joints).double())
@@ -492,6 +511,10 @@ class ChainArm:
             return position_error, None
         relative = quaternion_multiply(targets[..., 3:7].double(), quaternion_conjugate(matrix_to_quaternion(rotation)))
         return position_error, quaternion_angle(relative).float()
+
+    def errors_by_effector(self, joints, targets: torch.Tensor) -> None:
+        """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""
+        return None
 
     def target_features(self, targets: torch.Tensor) -> torch.Tensor:
         """What a denoiser is conditioned on, (..., condition_dim).

@@ -25,7 +25,7 @@ from ikdp.refine import damped_least_squares, sync_free_iteration
 from ikdp.restarts import restart_every_target, within_tolerances
 from ikdp.samplers import Sampler, make_sampler
 from ikdp.sampling import Trajectory, run_reverse_diffusion, step_conditions
-from ikdp.solver import SolveResult, is_integer
+from ikdp.solve_result import SolveResult, is_integer
 
 
 def capture(run, generator: torch.Generator):

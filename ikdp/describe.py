@@ -1,5 +1,6 @@
-"""Describe IKDP checkpoints: how each was trained and what it measured at save.
+"""Describe IKDP checkpoints: what ships, how each was trained and what it measured at save.
 
+    python -m ikdp.describe                           # the shipped models, one line each
     python -m ikdp.describe checkpoints/*.pt          # a markdown table and the commands
 
 Reads the checkpoint's own record (it never runs code from the file), and rebuilds
@@ -12,10 +13,15 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import typing
 from dataclasses import fields
 from pathlib import PurePath
 
+import tyro.conf
+
 from ikdp.checkpoint import CheckpointError, read_checkpoint
+from ikdp.shipped import PURPOSES, list_shipped
+from ikdp.solver import STUDENT
 from ikdp.train import TrainConfig
 
 NOT_OPTIONS = {"step", "seconds", "finished", "torch_version"}
@@ -41,11 +47,19 @@ def training_command(train: dict) -> str:
             parts.append(f"{flag} {value}")
         elif isinstance(value, bool):
             parts.append(flag if value else "--no-" + field.name.replace("_", "-"))
+        elif isinstance(value, tuple) and repeated_flag(field.name):  # --ee-link a --ee-link b
+            parts += [f"{flag} {v}" for v in value]
         elif isinstance(value, tuple):
             parts.append(flag + " " + " ".join(str(v) for v in value))
         else:
             parts.append(f"{flag} {value}")
     return " ".join(parts)
+
+
+def repeated_flag(name: str) -> bool:
+    """Whether TrainConfig's option `name` is given once per value on the command line (tyro's append action)."""
+    hint = typing.get_type_hints(TrainConfig, include_extras=True)[name]
+    return tyro.conf.UseAppendAction in getattr(hint, "__metadata__", ())
 
 
 def arm_text(model: dict, train: dict) -> str:
@@ -54,7 +68,8 @@ def arm_text(model: dict, train: dict) -> str:
     if arm["kind"] == "planar":
         return f"planar, {len(model['lengths'])} links"
     name = train.get("robot") or (train.get("urdf") and PurePath(train["urdf"]).name) or "chain"  # not a long path
-    return f"{name} ({arm.get('ee_link', '?')}), {len(arm['joint_names'])} joints, {arm.get('target', 'pose')} targets"
+    ends = arm.get("ee_link") or ", ".join(arm.get("ee_links", ["?"]))  # a tree names several
+    return f"{name} ({ends}), {len(arm['joint_names'])} joints, {arm.get('target', 'pose')} targets"
 
 
 def accuracy_text(model: dict, metrics: dict) -> str:
@@ -91,12 +106,41 @@ def describe(paths: list[str]) -> str:
     return "\n".join(rows) + "\n\nCommands:\n\n" + "\n".join(commands) + "\n"
 
 
+def short_accuracy(model: dict, metrics: dict) -> str:
+    """The raw median at save, short: '0.0072' (bone lengths) or '2.7 mm / 0.5°'."""
+    return accuracy_text(model, metrics).split(" (")[0]
+
+
+def fast_sampler_text(payload: dict) -> str:
+    """'student: ddim 4 steps, 3.7 mm / 0.7°' for a model with a folded student (its own grid for a student's
+    file), '-' for none."""
+    student = payload.get(STUDENT) or (payload if payload.get("distill") else None)
+    if student is None:
+        return "-"
+    record, accuracy = student["distill"], short_accuracy(student["model"], student["metrics"])
+    steps = f"{record['steps']} step" + ("s" if record["steps"] != 1 else "")
+    return f"{STUDENT}: {record['sampler']} {steps}, {accuracy}"
+
+
+def describe_shipped() -> str:
+    """One line per shipped model: name, arm, what it is for, its fast sampler, its raw median at save (K = 1)."""
+    lines = ["name | arm | for | fast sampler | raw median at save (DDPM, K=1)"]
+    for path in list_shipped():
+        payload = read_checkpoint(path)
+        model, train = payload["model"], payload["train"]
+        arm = arm_text(model, (payload.get("distill") or {}).get("teacher_train") or train)
+        accuracy = "-" if payload.get("distill") else short_accuracy(model, payload["metrics"])
+        purpose = PURPOSES.get(path.stem, "")
+        lines.append(f"{path.stem} | {arm} | {purpose} | {fast_sampler_text(payload)} | {accuracy}")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description="Describe IKDP checkpoints as markdown.")
-    parser.add_argument("paths", nargs="+", help="checkpoint files")
+    parser = argparse.ArgumentParser(description="Describe IKDP checkpoints as markdown (none named: what ships).")
+    parser.add_argument("paths", nargs="*", help="checkpoint files (none: the shipped models, one line each)")
     args = parser.parse_args(argv)
     try:
-        print(describe(args.paths))
+        print(describe(args.paths) if args.paths else describe_shipped())
     except CheckpointError as error:
         print(f"error: {error}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -68,7 +68,7 @@ class DistillConfig:
     # weight of the match to the teacher's ODE endpoint from the same noise (0: off, and the teacher's ODE is not run;
     # the distribution term then alone keeps the student's poses where the teacher's DDPM puts them)
     match_weight: float = 1.0
-    # weight of the squared FK miss of the student's pose (training's consistency term; ikdp_n4_2step's; at 100 it lost)
+    # weight of the squared FK miss of the student's pose (training's consistency term; ikdp_n4's student's; 100 lost)
     tip_loss_weight: float = 2000.0
     # weight of the FK miss itself, its distance (smoothed below a millimetre; 0: off): the square's pull fades as a
     # pose nears its target, where the distribution term's pull does not

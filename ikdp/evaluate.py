@@ -1,6 +1,6 @@
 """Evaluate IKDP beside its baselines and regenerate the paper's tables and figures.
 
-    python -m ikdp.evaluate --cache-dir .eval_cache            # full run, writes docs/
+    python -m ikdp.evaluate --cache-dir .eval_cache            # full run, writes runs/evaluation/
     python -m ikdp.evaluate --quick --out-dir /tmp/eval        # small sizes, a smoke run
     python -m ikdp.evaluate --only fidelity                    # one stage; what it needs comes from the cache
 
@@ -50,7 +50,7 @@ PAPER = {  # the paper's tables as published (units not stated there)
 @dataclass(frozen=True)
 class EvaluateConfig:
     quick: bool = False  # small sizes and stand-in models: a smoke run, used by the tests
-    out_dir: str = "docs"  # RESULTS.md, results.json and figures/ are written here
+    out_dir: str = "runs/evaluation"  # RESULTS.md, results.json and figures/; docs/paper.md renders its copy
     cache_dir: str = ".eval_cache"  # trained variants, baselines and stage results are cached here
     checkpoints: str = "checkpoints"  # folder of the shipped checkpoints (and their TensorBoard logs/)
     seed: int = 0  # seeds the targets, the samplers and every training run

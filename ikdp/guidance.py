@@ -22,7 +22,7 @@ from collections.abc import Sequence
 
 import torch
 
-from ikdp.arm import drawing_device
+from ikdp.arm_inputs import drawing_device
 from ikdp.constraint_base import Constraint
 from ikdp.joint_constraints import BoundLockedJoints
 from ikdp.partial_targets import BoundPartialTarget

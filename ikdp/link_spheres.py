@@ -388,7 +388,7 @@ def cover_with_spheres(triangles: np.ndarray, max_spheres: int) -> list[tuple[np
     Each split is 2-means of the triangles' centroids, started across their principal axis, and each
     part gets the smallest sphere around its triangles' corners (which holds the triangles, a sphere
     being convex). Splitting stops at `max_spheres`, or when halving the largest sphere would shrink it
-    by less than `WORTHWHILE_SHRINK` (docs/CONSTRAINTS.md has the Panda's cover).
+    by less than `WORTHWHILE_SHRINK` (the Panda's and the Z1's covers ship in ikdp/collision_spheres/).
     """
     centroids = triangles.mean(axis=1)
     clusters = [np.arange(len(triangles))]

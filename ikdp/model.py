@@ -12,7 +12,8 @@ from dataclasses import asdict, dataclass, field
 import torch
 from torch import nn
 
-from ikdp.arm import PlanarArm, arm_from_config, drawing_device
+from ikdp.arm import PlanarArm, arm_from_config
+from ikdp.arm_inputs import drawing_device
 from ikdp.denoisers import DenoiserConfig, build_denoiser
 from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 from ikdp.samplers import Sampler, make_sampler
@@ -145,13 +146,17 @@ class IKDiffusion(nn.Module):
         predicted_joints = self.representation.decode(
             predicted_clean, clamp=not self.config.denoiser.kinematics_past_limits
         )
-        if arm.target_dim == 7:  # pose targets: the rotation must be consistent too, not only the position
+        batch = joints.shape[0]
+        # pose targets: the rotation must be consistent too, not only the position; a chain's frame is (B, 3, 3),
+        # (B, 3), a tree's one per end effector, (B, E, 3, 3), (B, E, 3), its misses summed
+        if arm.target_dim > arm.position_dim:
             predicted_rotation, predicted_tip = arm.end_effector_frame(predicted_joints)
             true_rotation, _ = arm.end_effector_frame(joints)
-            rotation_miss = ((predicted_rotation - true_rotation) ** 2).sum(dim=(-1, -2))  # ~ 2 angle^2
+            rotation_miss = ((predicted_rotation - true_rotation) ** 2).reshape(batch, -1).sum(-1)  # ~ 2 angle^2
+            predicted_tip = predicted_tip.reshape(batch, -1)
         else:
             predicted_tip = arm.end_effector(predicted_joints)[..., : arm.position_dim]
-            rotation_miss = torch.zeros(joints.shape[0], device=joints.device)
+            rotation_miss = torch.zeros(batch, device=joints.device)
         tip_miss = ((predicted_tip - targets[..., : arm.position_dim]) ** 2).sum(-1)  # (B,)
         return tip_miss / arm.span**2 + ROTATION_LOSS_SCALE * rotation_miss, tip_miss
 

@@ -146,7 +146,7 @@ class BoundObstacles(BoundConstraint):
         removal: the step bends the elbow rather than pull the hand off the target the model is
         steering toward. A step along the depth's gradient alone fought the model over the hand:
         98.4 against 99.6 % of the obstacle benchmark's first 500 targets were solved (Panda, K=16
-        + 5 refinement steps, docs/CONSTRAINTS.md).
+        + 5 refinement steps, `python -m benchmarks.constraints`).
         """
         depth, gradient = self.penetration_and_gradient(joints, self.clearance)
         hand = self.arm.jacobian(joints).to(joints) * math.sqrt(HAND_WEIGHT)  # (M, E, J)

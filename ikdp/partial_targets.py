@@ -18,7 +18,7 @@ from typing import ClassVar
 
 import torch
 
-from ikdp.arm import drawing_device, validate_target_rows
+from ikdp.arm_inputs import drawing_device, validate_target_rows
 from ikdp.constraint_base import BoundConstraint, Constraint, finite_tensor
 from ikdp.refine import clamp_task_error, dls_step
 from ikdp.rotations import quaternion_multiply, quaternion_to_matrix

@@ -5,7 +5,7 @@ rejection (those whose tip lands within POSTERIOR_RADIUS of the target, then pol
 benchmarks/fidelity.py measures every sampler against), in place of the teacher's DDPM samples. A student matched
 to its teacher's DDPM can come no closer to the posterior than that DDPM (the relaxed planar model's, ten seeds:
 excess MMD² 0.00074, the best 4-evaluation student 1.22 × it); matched to the posterior itself it is not capped
-there (the shipped ikdp_n4_relaxed_4step, trained so: 0.59 × it).
+there (the student shipped in ikdp_n4_relaxed, trained so: 0.59 × it).
 
 Rejection needs the target's region to hold a fair share of the prior's mass: a planar tip (2 numbers) does, a 3-D
 position far less (one more factor of the small radius), a pose target none: the option is for planar arms.

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ikdp.arm import drawing_device, uniform_angles
+from ikdp.arm import uniform_angles
+from ikdp.arm_inputs import drawing_device
 from ikdp.kinematics import relative_to_absolute
 
 PRIOR_KINDS = ("uniform", "relaxed", "file")

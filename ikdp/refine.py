@@ -232,7 +232,7 @@ def better_of(
     set), so the others no longer count on a move the clamp undoes. Neither wins everywhere: on
     the Panda the active set alone took K=16 + 5 steps from 99.2 to 99.8 % of targets within
     1 mm and 1 degree, but left some poses stalled that the clamped step moved on; the better
-    of the two kept 99.8 % with more valid poses per target (docs/ROBOTS.md).
+    of the two kept 99.8 % with more valid poses per target (`python -m benchmarks.robot_benchmark`).
     """
     error = arm.task_error if task is None else task.error
     clamped_miss = error(clamped, targets).norm(dim=-1)

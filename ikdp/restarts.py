@@ -1,9 +1,9 @@
 """Random restarts for the targets a solve left unreached: a numerical fallback after the diffusion's poses.
 
-A few-step sampler's K poses for a target can all land where a short damped-least-squares refinement does
-not finish (one Panda target in a hundred for a one-evaluation student + 8 DLS steps, docs/BENCHMARKS.md);
-fresh uniform starts within the limits reach most of those. Only the unreached targets pay for them, so the
-cost is a share of a random-start solve as small as the share of targets missed.
+A few-step sampler's K poses for a target can all land where a short damped-least-squares refinement does not
+finish (one Panda target in a hundred for a one-evaluation student + 8 DLS steps: `python -m
+benchmarks.few_step_pipeline`); fresh uniform starts within the limits reach most of those. Only the unreached
+targets pay for them, so the cost is a share of a random-start solve as small as the share of targets missed.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def restart_unreached(
     if subset is not None:
         starts = subset.restart_from(starts)
     row_goals = goals[restarted]
-    fresh = damped_least_squares(arm, starts, row_goals, steps=steps, task=task)
+    fresh = arm.refine(starts, row_goals, steps=steps, task=task)
     angles = angles.clone()
     angles[restarted] = fresh_or_nearer(arm, angles[restarted], fresh, row_goals, constraints=subset, task=task)
     return angles, restarted

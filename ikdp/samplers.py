@@ -173,7 +173,8 @@ class AncestralSampler(Sampler):
         x_prev = a' x̂0 + sqrt(s'^2 - v) eps + sqrt(v) z,  eps = (x_t - a x̂0) / s,
         v = (s'^2 / s^2) (1 - a^2 / a'^2),   a = sqrt(abar), s = sqrt(1 - abar).
     On all T steps it is the DDPM's own update; on a few, packed near t = 0, it keeps the stochastic
-    sampler's small tail where the deterministic ones lose it (docs/BENCHMARKS.md, few-step sampling).
+    sampler's small tail where the deterministic ones lose it (benchmarks/few_step.py,
+    benchmarks/results/few_step.json).
     """
 
     name = "ancestral"

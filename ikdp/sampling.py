@@ -29,6 +29,7 @@ from ikdp.samplers import Sampler
 from ikdp.schedule import DiffusionSchedule
 
 PRECOMPUTE_CONDITION_LIMIT = 16 * 2**20  # floats; above this the condition is computed per step
+FEW_CONDITIONS = 64  # steps x targets up to which the conditions are computed before their size is checked
 
 StepCallback = Callable[[int, int, torch.Tensor, torch.Tensor], "bool | None"]
 
@@ -61,10 +62,16 @@ def step_conditions(denoiser, timesteps, targets: torch.Tensor, num_samples: int
     """
     batch = targets.shape[0]
     t_all = torch.as_tensor(timesteps, device=targets.device)
-    per_row = denoiser.condition(t_all[:1], targets[:1]).numel()
+    per_target = None
+    if len(timesteps) * batch <= FEW_CONDITIONS:  # computed at once, then sized: no call to size them first
+        per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
+        per_row = per_target[0].numel()
+    else:
+        per_row = denoiser.condition(t_all[:1], targets[:1]).numel()
     if len(timesteps) * batch * num_samples * per_row > PRECOMPUTE_CONDITION_LIMIT:
         return None
-    per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
+    if per_target is None:
+        per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
     conditions = per_target.unflatten(0, (len(timesteps), batch))
     if batch > 1 and num_samples > 1:
         conditions = conditions.repeat_interleave(num_samples, dim=1)

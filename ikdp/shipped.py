@@ -12,6 +12,18 @@ from pathlib import Path
 
 DEFAULT_MODEL = "ikdp_n4"  # the visualizer's model when no --ckpt is given
 
+# What each shipped model is for, in a few words (`python -m ikdp.describe`); the files say the rest themselves
+PURPOSES = {
+    "ikdp_n2": "2 links: the elbow-up / elbow-down pair",
+    "ikdp_n4": "the default planar arm",
+    "ikdp_n8": "a redundant planar arm",
+    "ikdp_paper_n4": "the paper's transformer and loss, for comparison",
+    "ikdp_n4_relaxed": "natural poses (a relaxed joint prior)",
+    "ikdp_panda": "the most precise Panda",
+    "ikdp_panda_fast": "Panda: seed of the fastest CPU pipeline (+ DLS)",
+    "ikdp_z1": "the Unitree Z1, trained from its URDF",
+}
+
 
 def shipped_dir() -> Path:
     """The folder holding the shipped checkpoints (it may not exist, e.g. in a sparse checkout)."""

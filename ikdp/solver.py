@@ -7,7 +7,6 @@ out = solver.solve(targets, num_samples=16)
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import torch
@@ -16,60 +15,45 @@ from ikdp.checkpoint import CheckpointError, read_checkpoint
 from ikdp.constraint_base import Constraint
 from ikdp.denoisers.int8 import Int8Weights, int8_available
 from ikdp.device import available_bytes, checked_device
+from ikdp.fused_chain import small_batch
 from ikdp.guidance import ConstraintSet
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
-from ikdp.refine import damped_least_squares
 from ikdp.restarts import restart_unreached
 from ikdp.samplers import SAMPLERS, sampler_names
 from ikdp.sampling import StepCallback
 from ikdp.schedule import TIMESTEP_SPACINGS
 from ikdp.shipped import shipped_checkpoint
+from ikdp.solve_result import SolveResult, is_integer
+from ikdp.stream import PoseStream
 from ikdp.tracking import TrackResult, track
 
-# Peak memory of one sample row while sampling, measured on one CPU thread (ikdp_panda, hidden 512: 9.6 kB;
-# ikdp_panda_cpu, hidden 256: 5.3 kB; refinement adds nothing to the peak): about 1 kB + 17 bytes per unit width.
+# Peak memory of one sample row while sampling, measured on one CPU thread (a Panda model of hidden 512: 9.6 kB;
+# of hidden 256: 5.3 kB; refinement adds nothing to the peak): about 1 kB + 17 bytes per unit width.
 ROW_BYTES_FIXED = 1024
 ROW_BYTES_PER_WIDTH = 17
 MEMORY_CHECK_FROM = 2**28  # bytes: solves that need less are not checked against the free memory
-
-
-@dataclass
-class SolveResult:
-    angles: torch.Tensor  # (B, K, J) joint values (planar: absolute link headings in (-pi, pi]); refined if asked
-    tip_error: torch.Tensor  # (B, K) distance from the end effector of `angles` to the target (arm's length unit)
-    trajectory: torch.Tensor | None  # (S+1, B, K, J) raw sampler states from noise to final, when asked
-    timesteps: list[int]  # the S diffusion timesteps of the sampler, noisiest first
-    reachable: torch.Tensor | None  # (B,) False where the target lies outside the arm's reach; None if unknown
-    raw_angles: torch.Tensor  # (B, K, J) the sampler's output before refinement
-    raw_tip_error: torch.Tensor  # (B, K) tip error of `raw_angles`
-    estimates: torch.Tensor | None = None  # (S, B, K, J) the denoiser's x̂0 at each step, when asked
-    stopped: bool = False  # True when the callback stopped the solve; the poses are the state reached then
-    rotation_error: torch.Tensor | None = None  # (B, K) radians, for pose targets (free axis: the axis's miss)
-    constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
-    network_evaluations: int = 0  # denoiser calls each sample went through, one after another (the refinement: none)
-    restarted: torch.Tensor | None = None  # (B,) True where a target, unreached, restarted from random starts
-
-    @property
-    def constraints_met(self) -> torch.Tensor | None:
-        """(B, K) True where every constraint holds (locked joints exactly, no link inside an obstacle)."""
-        return None if self.constraint_violation is None else self.constraint_violation == 0
-
-    @property
-    def position_error(self) -> torch.Tensor:
-        """(B, K) the end effector's distance to the target position (= tip_error)."""
-        return self.tip_error
+STUDENT = "student"  # solve's sampler name for a model's distilled few-step student (the one folded into its file)
 
 
 class Solver:
     """A trained IKDP model, ready to solve. Build it with `ikdp.load(path or shipped name)`."""
 
-    def __init__(self, model: IKDiffusion, prior: PosePrior, metadata: dict, device: str | torch.device = "cpu"):
+    def __init__(
+        self,
+        model: IKDiffusion,
+        prior: PosePrior,
+        metadata: dict,
+        device: str | torch.device = "cpu",
+        student: Solver | None = None,
+    ):
         self.device = checked_device(device)
         self.model = model.to(self.device).eval()
         self.arm = model.arm
         self.prior = prior
         self.metadata = metadata  # model config, training config, metrics at save, source path
+        # the few-step student folded into this model's file (ikdp/ship.py): what solve(sampler="student") runs
+        self.student = student
 
     @property
     def num_links(self) -> int:
@@ -99,12 +83,12 @@ class Solver:
 
         A distilled student's own (sampler, steps) use the grid it was trained on; a robot's few-step
         solves use the grid packed near t = 0, which measured better at 4 to 16 evaluations on both shipped
-        Panda models (docs/BENCHMARKS.md, few-step sampling); a planar arm's keep the evenly spaced grid.
+        Panda models (docs/benchmarks.md); a planar arm's keep the evenly spaced grid.
         """
         student = self.metadata.get("distill") or {}
         if (sampler, steps) == (student.get("sampler"), student.get("steps")):
             return student["spacing"]
-        return "quadratic" if self.arm.kind == "chain" else "uniform"
+        return "uniform" if self.arm.kind == "planar" else "quadratic"
 
     def solve(
         self,
@@ -123,7 +107,8 @@ class Solver:
         initial_noise: torch.Tensor | None = None,
         constraints: Sequence[Constraint] = (),
     ) -> SolveResult:
-        """K poses for each of B targets, (B, target_dim) -> (B, K, J).
+        """K poses for each of B targets, (B, target_dim) -> (B, K, J); several end effectors (`arm.ee_links`):
+        targets (B, E, 7) or (B, E, 3), and each one's errors in `tip_error_by_effector` (B, K, E).
 
         An unreachable target is not an error: the model is asked for the nearest
         reachable point (its training never saw farther targets), so the arm reaches
@@ -141,13 +126,30 @@ class Solver:
         terms. None draws it from `generator` (as the first thing drawn).
         `constraints` (ikdp.constraint_names(): locked joints, a pose to stay near, obstacles,
         partial targets) bend the reverse process toward them and are kept by the refinement;
-        `constraint_violation` then says where they hold (docs/CONSTRAINTS.md).
+        `constraint_violation` then says where they hold (docs/library.md, "Constraints").
         `restart_steps`: a numerical fallback. The targets none of whose K refined poses is within the arm's
         tolerances (1 mm and 1 degree on a robot) get K fresh uniform starts within the limits, refined that
         many DLS steps (ikdp/restarts.py); `restarted` (B,) says which. With constraints, reaching also means
         meeting them, and the fresh starts keep the locked joints and are refined by the constrained task (a pose
         to stay near, a soft pull on the diffusion, does not steer them).
         """
+        if sampler == STUDENT:
+            student, sampler, steps, spacing = self.student_sampling(steps, spacing)
+            return student.solve(
+                targets,
+                num_samples=num_samples,
+                sampler=sampler,
+                steps=steps,
+                spacing=spacing,
+                refine_steps=refine_steps,
+                restart_steps=restart_steps,
+                generator=generator,
+                return_trajectory=return_trajectory,
+                return_estimates=return_estimates,
+                callback=callback,
+                initial_noise=initial_noise,
+                constraints=constraints,
+            )
         arm = self.arm
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
         spacing = self.default_spacing(sampler, steps) if spacing is None else spacing
@@ -192,14 +194,19 @@ class Solver:
         # refinement and restarts aim at the nearest reachable point: for a target beyond reach, the stretched arm
         goals = sample_targets.reshape(batch, num_samples, -1) if per_target == 1 else conditions[:, None]
         goals = goals.expand(-1, num_samples, -1)
+        # a few poses on a CPU (one target's K): the arm's kinematics, errors and, without constraints, refinement as
+        # a few fused operations (ikdp/fused_chain.py), the same numbers to rounding; a batch keeps the arm's own
+        fused = small_batch(raw.numel() // arm.num_joints, raw.device)
+        kinematics = arm.small_batch_kinematics() if fused else arm
         if refine_steps and not result.stopped:
             task = None if bound is None else bound.refine_task()
-            angles = damped_least_squares(arm, raw, goals, steps=refine_steps, task=task)
+            angles = kinematics.refine(raw, goals, steps=refine_steps, task=task)
         restarted = None
         if restart_steps and not result.stopped:
-            angles, restarted = restart_unreached(arm, angles, goals, restart_steps, generator, bound)
-        error, rotation_error = arm.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
-        raw_error = error if angles is raw else arm.tip_error(raw, per_sample_targets)
+            angles, restarted = restart_unreached(kinematics, angles, goals, restart_steps, generator, bound)
+        error, rotation_error = kinematics.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
+        raw_error = error if angles is raw else kinematics.tip_error(raw, per_sample_targets)
+        by_effector = arm.errors_by_effector(angles, per_sample_targets)  # a tree's, each (B, K, E); else None
         if bound is not None and bound.partial is not None:
             rotation_error = bound.partial.rotation_error(angles, per_sample_targets)
         states, estimates = result.states, result.estimates
@@ -220,7 +227,35 @@ class Solver:
             constraint_violation=None if bound is None else bound.violation(angles),
             network_evaluations=result.network_evaluations,
             restarted=restarted,
+            tip_error_by_effector=None if by_effector is None else by_effector[0],
+            rotation_error_by_effector=None if by_effector is None else by_effector[1],
         )
+
+    def student_sampling(self, steps: int | None, spacing: str | None) -> tuple[Solver, str, int, str]:
+        """(student, sampler, steps, spacing) that sampler="student" runs: the folded student on the grid it was
+        distilled for (a student's own file: itself); ValueError when this model has none or the call asks for
+        another grid."""
+        student = self.student if self.student is not None else (self if self.metadata.get("distill") else None)
+        if student is None:
+            name = Path(str(self.metadata.get("path", "this model"))).stem
+            raise ValueError(
+                f"sampler: {name!r} has no distilled student to run as 'student'; its samplers: {sampler_names()}"
+            )
+        record = student.metadata["distill"]
+        own = (int(record["steps"]), str(record["spacing"]))
+        if (steps, spacing) not in ((None, None), own):
+            raise ValueError(
+                f"steps, spacing: the student runs the {own[0]} steps ({own[1]}) it was distilled for; got steps="
+                f"{steps!r}, spacing={spacing!r} (leave both None)"
+            )
+        return student, str(record["sampler"]), own[0], own[1]
+
+    def stream(self, start_pose, **options) -> PoseStream:
+        """Targets one at a time, as a control loop asks: `stream = solver.stream(start_pose)`, then
+        `pose = stream(target)` (target_dim,) -> (J,) at every tick, each warm-started from the last answer by a
+        few fused damped least-squares steps, a tracking solve where they do not reach (ikdp/stream.py).
+        `options`: max_steps, max_jump, and `track`'s for that fallback."""
+        return PoseStream(self, start_pose, **options)
 
     def capture(self, batch: int, **options):
         """This solve for `batch` targets as one CUDA graph (a solver on a GPU; ikdp/cuda_graph.py):
@@ -230,6 +265,11 @@ class Solver:
         compiles each refinement step first (torch.compile; Triton)."""
         from ikdp.cuda_graph import CapturedSolve  # CUDA-only machinery, loaded when asked for
 
+        if options.get("sampler") == STUDENT:
+            student, sampler, steps, spacing = self.student_sampling(options.get("steps"), options.get("spacing"))
+            return CapturedSolve(
+                student, batch=batch, **{**options, "sampler": sampler, "steps": steps, "spacing": spacing}
+            )
         return CapturedSolve(self, batch=batch, **options)
 
     def check_options(
@@ -239,7 +279,7 @@ class Solver:
         if not is_integer(num_samples) or num_samples < 1:
             raise ValueError(f"num_samples: expected a positive integer, got {num_samples!r}")
         if sampler not in SAMPLERS:
-            raise ValueError(f"sampler: expected one of {sampler_names()}, got {sampler!r}")
+            raise ValueError(f"sampler: expected one of {sampler_names()} or {STUDENT!r}, got {sampler!r}")
         if spacing not in TIMESTEP_SPACINGS:
             raise ValueError(f"spacing: expected one of {TIMESTEP_SPACINGS} or None, got {spacing!r}")
         if steps is not None and (not is_integer(steps) or steps < 1):
@@ -286,11 +326,6 @@ class Solver:
         look_ahead and solve's.
         """
         return track(self, path, start_pose, **options)
-
-
-def is_integer(value) -> bool:
-    """An int, and not a bool (True is an int to Python, never a count to a caller)."""
-    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def regroup_callback(callback: StepCallback, batch: int, num_samples: int) -> StepCallback:
@@ -368,6 +403,7 @@ def load(path: str | Path, device: str | torch.device = "cpu", precision: str = 
             raise ValueError(f"precision 'int8': {unavailable}")
     path = resolve_checkpoint(path)
     payload = read_checkpoint(path)
+    student_payload = folded_student(payload, path)
     model = model_from_checkpoint(payload, str(path))
     kind = model.config.denoiser.kind
     if precision == "int8" and kind != "chain_film":
@@ -376,6 +412,15 @@ def load(path: str | Path, device: str | torch.device = "cpu", precision: str = 
         prior = PosePrior.from_config(payload["prior"])
     except (KeyError, TypeError, ValueError) as error:
         raise CheckpointError(f"{path}: invalid prior in checkpoint ({error})") from None
+    student = None
+    if student_payload is not None:
+        student_model = model_from_checkpoint(student_payload, f"{path} (its student)")
+        student = solver_of(student_model, prior, student_payload, path, precision, device)
+    return solver_of(model, prior, payload, path, precision, device, student)
+
+
+def solver_of(model, prior, payload: dict, path: Path, precision: str, device, student: Solver | None = None):
+    """The Solver of a model read from `payload` (a file's, or the student folded into it)."""
     metadata = {
         "path": str(path),
         "model": payload["model"],
@@ -384,7 +429,26 @@ def load(path: str | Path, device: str | torch.device = "cpu", precision: str = 
         "distill": payload.get("distill"),  # a student of ikdp.distill: its teacher and its own sampler
         "precision": precision,
     }
-    solver = Solver(model, prior, metadata, device)
+    solver = Solver(model, prior, metadata, device, student)
     if precision == "int8":
         solver.model.denoiser.int8 = Int8Weights(solver.model.denoiser)
     return solver
+
+
+STUDENT_KEYS = ("model", "train", "metrics", "distill", "state_dict")
+
+
+def folded_student(payload: dict, path: Path) -> dict | None:
+    """The student payload folded into a checkpoint (ikdp/ship.py), checked for what a Solver needs; None if none."""
+    student = payload.get(STUDENT)
+    if student is None:
+        return None
+    if not isinstance(student, dict):
+        raise CheckpointError(f"{path}: its student is not a dict but {type(student).__name__}")
+    missing = [key for key in STUDENT_KEYS if key not in student]
+    if missing:
+        raise CheckpointError(f"{path}: its student is incomplete, missing {', '.join(missing)}")
+    record = student["distill"]
+    if not isinstance(record, dict) or any(key not in record for key in ("sampler", "steps", "spacing")):
+        raise CheckpointError(f"{path}: its student's distill record lacks its sampler, steps or spacing")
+    return student

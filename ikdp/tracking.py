@@ -6,7 +6,7 @@ on; of those that reach the target (and meet the other constraints), the one nea
 previous pose is kept. Nearest is by the Euclidean joint distance, as the pseudo-inverse's
 minimum-norm step: by the largest joint change alone, the other joints are free to drift along a
 redundant arm's self-motion, and on one Panda circle the path drifted into a stretch near a
-singularity that needed a 0.115 rad jump (0.043 by the Euclidean distance: docs/CONSTRAINTS.md).
+singularity that needed a 0.115 rad jump (0.043 by the Euclidean distance; `python -m benchmarks.constraint_tracking`).
 The previous solution refined toward the target is one more candidate (`warm_start`).
 
 A path the branch cannot follow (it runs into a joint limit) makes the arm switch branch: a jump of
@@ -36,9 +36,9 @@ from dataclasses import dataclass
 import torch
 
 from ikdp.constraint_base import joint_difference
+from ikdp.fused_chain import small_batch
 from ikdp.guidance import ConstraintSet
 from ikdp.joint_constraints import NearPose
-from ikdp.refine import damped_least_squares
 
 WARM_START_STEPS = 10  # DLS steps of the warm-started candidate (at least the solve's refine_steps)
 BRANCH_SWITCH_RATIO = 10.0  # a jump this many times the move the path step needs ...
@@ -125,13 +125,12 @@ def track(
 ) -> TrackResult:
     """path (P, target_dim), start_pose (J,) -> one solution per target, each near the one before.
 
-    `weight`: NearPose's pull (0.3 let a Panda circle jump branches once, 3.6 rad; 0.6 kept every
-    jump under 0.02 rad: docs/CONSTRAINTS.md); the tolerances decide which samples count as reaching a
-    target and `reached` (None: the arm's own, `arm.position_tolerance` and `arm.rotation_tolerance`: 1 mm
-    and 1 degree on a robot, 1e-3 of the reach on a planar arm); `solve_options` go to
-    `solver.solve` (num_samples, sampler, steps, refine_steps, generator). `warm_start`: the
-    previous solution refined toward the target (damped least squares, as a warm-started numerical
-    solver would) is one more candidate.
+    `weight`: NearPose's pull (0.3 let a Panda circle jump branches once, 3.6 rad; 0.6 kept every jump under 0.02
+    rad; `python -m benchmarks.constraint_tracking`); the tolerances decide which samples count as reaching a
+    target and `reached` (None: the arm's own, `arm.position_tolerance` and `arm.rotation_tolerance`: 1 mm and 1
+    degree on a robot, 1e-3 of the reach on a planar arm); `solve_options` go to `solver.solve` (num_samples,
+    sampler, steps, refine_steps, generator). `warm_start`: the previous solution refined toward the target
+    (damped least squares, as a warm-started numerical solver would) is one more candidate.
 
     Out of reach (module docstring): `hold_step` (radians, or None) is the largest joint move per
     target while no candidate reaches, the arm stretched toward the target on its own branch; None
@@ -140,7 +139,7 @@ def track(
     most of the next `look_ahead` targets in a row is kept, not merely the nearest one. Neither acts
     while every target is reached (a path within reach is tracked exactly as without them), nor
     with a partial target (PositionOnly, FreeAxis), whose refinement aims elsewhere. On a
-    Panda circle 53.5 % reachable (docs/CONSTRAINTS.md), with neither rule `track` reached 36.0 %
+    Panda circle 53.5 % reachable (`python -m benchmarks.constraint_tracking`), with neither rule `track` reached 36.0 %
     (back in reach, the nearest candidate lost the path again 7 targets on) with 42 jumps over
     0.1 rad; either rule, or both, reached every reachable target (53.5 %): the look-ahead alone
     with 33 jumps over 0.1 rad (the arm wandering while out of reach), the hold with 2, both where
@@ -163,10 +162,14 @@ def track(
     refine_task = ConstraintSet(arm, list(constraints), 1, 1).refine_task() if constraints else None
     refine_steps = max(int(solve_options.get("refine_steps", 0)), WARM_START_STEPS)
 
+    def kinematics(rows: int):
+        """The arm, or for a few poses on a CPU its kinematics as a few fused operations (the same numbers)."""
+        return arm.small_batch_kinematics() if small_batch(rows, solver.device) else arm
+
     def refined(joints: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """joints (C, J) refined toward one target by warm-started damped least squares -> (C, J)."""
         goal = arm.clamp_to_workspace(target[None])[:, None].expand(1, len(joints), -1)
-        return damped_least_squares(arm, joints[None], goal, steps=refine_steps, task=refine_task)[0]
+        return kinematics(len(joints)).refine(joints[None], goal, steps=refine_steps, task=refine_task)[0]
 
     def meets(joints: torch.Tensor) -> torch.Tensor:
         """joints (C, J) -> (C,) True where every constraint holds."""
@@ -176,8 +179,8 @@ def track(
 
     def evaluated(joints: torch.Tensor, target: torch.Tensor) -> Candidates:
         """joints (C, J) as candidates for one target: their errors and whether they meet the constraints."""
-        rotation = arm.rotation_error(joints, target[None]) if arm.target_dim == 7 else None
-        return Candidates(joints, arm.tip_error(joints, target[None]), rotation, meets(joints))
+        position, rotation = kinematics(len(joints)).tip_and_rotation_errors(joints, target[None])
+        return Candidates(joints, position, rotation, meets(joints))
 
     def reaching(candidates: Candidates) -> torch.Tensor:
         """(C,) True where a candidate is within the tolerances and meets the constraints."""
@@ -252,3 +255,37 @@ def track(
         needed_jumps=needed,
         branch_switches=branch_switches(joint_jumps, needed),
     )
+
+
+@dataclass
+class TrackStep:
+    """One target of `track`: the pulled solve of it and the pose kept."""
+
+    solve: object  # the SolveResult of the target solved with the pull toward the previous pose (its K samples)
+    kept: TrackResult  # one row: the pose kept, its errors, whether it reached, its jump, whether it switched branch
+    sample: int | None  # which of the solve's K returned poses was kept; None: the previous pose moved onto the
+    # target (the warm-started candidate, or the held stretch where nothing reaches)
+
+
+def track_step(solver, target, previous_pose, **options) -> TrackStep:
+    """target (target_dim,), previous_pose (J,) -> the step `track` takes to this target from `previous_pose`.
+
+    It is `track` itself on the one-target path, so a caller that gets its targets one at a time (a
+    dragged gizmo) keeps what `track` keeps; it cannot look ahead (it has no later targets). `options`
+    as `track`'s; the solve options (return_trajectory, initial_noise, callback, ...) reach the solve
+    returned as `solve`.
+    """
+    solves = []
+
+    class Recorded:  # the solver itself (every attribute `track` reads), keeping the solve `track` makes
+        def __getattr__(self, name):
+            return getattr(solver, name)
+
+        def solve(self, *args, **kwargs):
+            solves.append(solver.solve(*args, **kwargs))
+            return solves[-1]
+
+    kept = track(Recorded(), torch.as_tensor(target)[None], previous_pose, **options)
+    solved = solves[0]
+    same = (solved.angles[0] == kept.angles[0]).all(dim=-1).nonzero().flatten()
+    return TrackStep(solved, kept, int(same[0]) if len(same) else None)

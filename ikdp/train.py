@@ -26,10 +26,11 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import torch
 import torch.distributed as dist
+import tyro.conf
 
 from ikdp.checkpoint import CheckpointError, read_checkpoint, remove_stale_temporaries, save_checkpoint
 from ikdp.denoisers import DenoiserConfig
@@ -50,8 +51,10 @@ class TrainConfig:
 
     joints: int = 4  # number of links N of a planar arm (a robot's joints come from its URDF)
     robot: str = ""  # a robot by name instead of the planar arm: panda, ur5, z1, spatial<N> (ikdp.robots)
-    urdf: str = ""  # or any serial chain from a URDF file (with --ee-link)
-    ee_link: str = ""  # the end-effector link of --urdf; with --robot, another than its own (panda: panda_hand)
+    urdf: str = ""  # or any serial chain from a URDF file (with --ee-link), or a tree (--ee-link given twice or more)
+    # the end-effector link of --urdf; repeated for several (a humanoid's two hands: targets (B, E, 7), in this
+    # order); with --robot, one other than its own (panda: panda_hand)
+    ee_link: Annotated[tuple[str, ...], tyro.conf.UseAppendAction] = ()
     base_link: str = ""  # where --urdf's chain starts, the frame of the targets; empty: the root of ee_link's tree
     target: Literal["pose", "position"] = "pose"  # robots: full pose targets (B, 7) or positions (B, 3)
     lengths: tuple[float, ...] | None = None  # bone lengths, one per link; None: all 1
@@ -107,8 +110,18 @@ def with_arm_defaults(config: TrainConfig) -> TrainConfig:
     return replace(config, **chosen)
 
 
+def ee_links(config: TrainConfig) -> tuple[str, ...]:
+    """The end-effector links a config names (a caller's single string is one link)."""
+    value = config.ee_link
+    if isinstance(value, str):
+        return (value,) if value else ()
+    return tuple(value)
+
+
 def build_chain_arm(config: TrainConfig):
-    """The robot a config names (--robot or --urdf with --ee-link), or None for the planar arm."""
+    """The robot a config names (--robot or --urdf with --ee-link; a TreeArm for several), or None for the planar
+    arm."""
+    links = ee_links(config)
     if config.robot and config.urdf:
         raise ValueError("robot: give --robot NAME or --urdf PATH, not both")
     if config.base_link and not config.urdf:
@@ -116,16 +129,22 @@ def build_chain_arm(config: TrainConfig):
     if config.robot:
         from ikdp.robots import load_robot
 
-        return load_robot(config.robot, target=config.target, ee_link=config.ee_link or None)
+        if len(links) > 1:
+            raise ValueError(f"ee_link: --robot {config.robot} has one end effector, got {list(links)}; use --urdf")
+        return load_robot(config.robot, target=config.target, ee_link=links[0] if links else None)
     if config.urdf:
         from ikdp.chain_arm import ChainArm
         from ikdp.urdf import link_names, links_phrase
 
-        if not config.ee_link:
+        if not links:
             path = Path(config.urdf)
             known = f"; {links_phrase(link_names(path.read_text(encoding='utf-8')))}" if path.is_file() else ""
             raise ValueError(f"ee_link: --urdf needs --ee-link NAME, the end-effector link{known}")
-        return ChainArm.from_urdf(config.urdf, config.ee_link, target=config.target, base_link=config.base_link or None)
+        if len(links) > 1:
+            from ikdp.tree_arm import TreeArm
+
+            return TreeArm.from_urdf(config.urdf, links, target=config.target, base_link=config.base_link or None)
+        return ChainArm.from_urdf(config.urdf, links[0], target=config.target, base_link=config.base_link or None)
     return None
 
 
@@ -184,12 +203,12 @@ def measure_accuracy(model: IKDiffusion, prior: PosePrior, count: int, device: t
         "tip_error_mean": float(error.mean()),
         "tip_error_p95": float(error.quantile(0.95)),
         "sampler": "ddpm raw, K=1",
-        "tip_error_units": "m" if arm.kind == "chain" else "bone lengths",
+        "tip_error_units": "bone lengths" if arm.kind == "planar" else "m",
     }
-    if arm.target_dim == 7:  # pose targets: the rotation error too, radians
+    if arm.target_dim > arm.position_dim:  # pose targets: the rotation error too, radians
         rotation = arm.rotation_error(poses.cpu(), targets)
         metrics.update(rotation_error_median=float(rotation.median()), rotation_error_mean=float(rotation.mean()))
-    if arm.kind == "chain":  # joints outside their limits, summed over the targets
+    if arm.kind != "planar":  # joints outside their limits, summed over the targets
         metrics["limit_violations"] = (
             int(arm.limit_violations(poses.cpu()).sum()) if hasattr(arm, "limit_violations") else 0
         )
@@ -275,6 +294,9 @@ def saved_config(payload: dict, config_class: type = TrainConfig):
     values = {field.name: record[field.name] for field in fields(config_class) if field.name in record}
     if isinstance(values.get("lengths"), list):
         values["lengths"] = tuple(values["lengths"])
+    if "ee_link" in values:  # one link was recorded as a string
+        link = values["ee_link"]
+        values["ee_link"] = ((link,) if link else ()) if isinstance(link, str) else tuple(link)
     return replace(config_class(), **values)
 
 

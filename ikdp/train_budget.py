@@ -7,7 +7,7 @@ instead of stopping at the peak. Time is the training's own (seconds saved in th
 
 A `--resume` with more steps or minutes than the run had (`resumed`) goes on down from the rate it had reached,
 over what the new budget leaves: fitting the cosine to the longer budget afresh had lifted the rate back up
-(a distilled student lost a fifth of its fidelity gain that way, docs/BENCHMARKS.md).
+(a distilled student lost a fifth of its fidelity gain that way).
 """
 
 from __future__ import annotations

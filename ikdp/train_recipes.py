@@ -2,9 +2,9 @@
 
 A planar arm keeps the recipe its models were trained with. A robot (`--robot`, `--urdf`) takes the robot
 recipe for the device: on a GPU the Panda's (ε-prediction, cosine schedule, plain MSE, width 512, batch 8192:
-docs/ROBOTS.md "The tail"); on a CPU a smaller network and batch with x0-prediction, the karras schedule and
+docs/robots.md, "What did not work"); on a CPU a smaller network and batch with x0-prediction, the karras schedule and
 the FK-consistency term, which land near a solution within the first thousand steps, where ε-prediction
-needs the GPU's large batches (docs/ROBOTS.md, "Any robot a user brings": on the xArm7, 100 against 307 mm
+needs the GPU's large batches (on the xArm7, 100 against 307 mm
 after 1,500 steps of one CPU thread). Every value the run used, given or taken from a recipe, is written
 into the checkpoint.
 """

@@ -9,8 +9,8 @@ nothing (tests/test_train_steps.py checks the step's body on a CPU) and keeps ev
 
 Both are called the same way, `steps(lr) -> (the batch drawn, the losses)`, and take the same steps: on a CPU,
 GraphedSteps with an eager recorder gives EagerSteps' weights (a test). On an H100 the graph took the Panda's
-GPU recipe from 41.7 to 144.8 steps a second and the planar N = 4 recipe from 147 to 1181 (docs/ROBOTS.md,
-"Training on a GPU"), so `ikdp.train` replays one wherever it applies (`graph_applies`).
+GPU recipe from 41.7 to 144.8 steps a second and the planar N = 4 recipe from 147 to 1181 (docs/training.md,
+"On a GPU"), so `ikdp.train` replays one wherever it applies (`graph_applies`).
 """
 
 from __future__ import annotations

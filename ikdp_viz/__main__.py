@@ -42,7 +42,7 @@ class VizConfig:
     # or W X Y Z (a pose model given X Y Z keeps its first rotation); to open on what you saw, for a bug report
     target: tuple[float, ...] | None = None
     samples: int = 16  # samples K, 1 to 64
-    # ddpm, ddim, dpmpp2m, or student: the model's distilled few-step student beside it in checkpoints/ (None: the
+    # ddpm, ddim, dpmpp2m, or student: the distilled few-step student folded into the model's file (None: the
     # student for a robot that has one, else ddpm)
     sampler: str | None = None
     steps: int | None = None  # reverse steps of a sampler that can skip some, not ddpm (None: 20; 10 for a robot)
@@ -82,7 +82,7 @@ def apply_settings(app, config: VizConfig) -> None:
     panel = app.panel
     default_sampler, default_steps = opening_sampler(arm_kind(app.solver), app.session.student, app.asked_for_student)
     if config.sampler == STUDENT and app.session.student is None:
-        fail(f"--sampler student: no distilled student of {app.solver.metadata['path']} among the shipped models")
+        fail(f"--sampler student: {app.solver.metadata['path']} holds no distilled student")
     panel.samples.value = config.samples
     panel.sampler.value = config.sampler or default_sampler
     panel.steps.value = min(default_steps if config.steps is None else config.steps, panel.steps.max)
@@ -163,7 +163,7 @@ def main(argv: list[str] | None = None) -> None:
             details = "listening on all interfaces; " + details
         print(f"ikdp-viz: {details}", flush=True)
         # viser's own address parameter: half-resolution drawing, about 1.5 times the frames in
-        # software WebGL (docs/VIZ.md, "Lines instead of capsules")
+        # software WebGL (docs/viewer.md, "Frames in the page")
         print(
             f"ikdp-viz: a slow page (no GPU)? http://{shown_host}:{port}/?fixedDpr=0.5 draws at half resolution",
             flush=True,

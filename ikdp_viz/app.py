@@ -28,7 +28,7 @@ import viser
 import ikdp
 from ikdp.samplers import sampler_names
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.camera import camera_fit
+from ikdp_viz.camera import camera_fit, fit_fields_of_view
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.downloads import Downloads
 from ikdp_viz.messages import (
@@ -53,6 +53,7 @@ from ikdp_viz.solving import Solved, solve
 from ikdp_viz.student import model_and_student
 from ikdp_viz.typed_target import target_from_numbers
 
+PAGE_DRAW_TIMEOUT = 20.0  # seconds a new tab gets to draw its first frame before the denoising plays anyway
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
 
 __all__ = ["VizApp", "camera_fit", "checkpoint_arm_kind", "list_checkpoints"]
@@ -85,7 +86,7 @@ class VizApp:
             self.asked_for_student = False
         self.session = Session(solver, target, student)
         given = Path(solver.metadata.get("path", "model.pt"))
-        # dropdown label -> path, only the models of the arm this viewer draws (issue 19: the Panda offered in a
+        # dropdown label -> path, only the models of the arm this viewer draws (the Panda offered in a
         # planar session could not open)
         self.models = ModelChoices(dict(checkpoints or {given.name: given}), solver, checkpoint_folder)
         self.worker = LatestWorker(stale_grace=STALE_GRACE)
@@ -132,8 +133,25 @@ class VizApp:
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def _on_connect(self, client) -> None:
+        """A tab connected (viser's pool thread): play the solve no one saw once the page draws."""
         self.refresh_checkpoints()
+        # viser calls this on the page's first camera message, before its first frame: on a CPU the page then drew
+        # its first frame at t = 54 of 80. A tiny render comes back once the page has drawn the scene (its shaders
+        # built), so the denoising plays from a frame the page can draw.
+        try:
+            client.get_render(height=8, width=8, timeout=PAGE_DRAW_TIMEOUT)
+        except (TimeoutError, RuntimeError):  # a page that never draws (or closed): play anyway, as before
+            pass
         self.writer.post(TabOpened(client))  # the loop plays a solve no one saw, and hides viser's WebGL toast
+        shape = [None]  # the canvas size last seen: a resized window gets its field of view on the drawing loop
+
+        def resized(camera) -> None:
+            size = (camera.image_width, camera.image_height)
+            if size != shape[0]:
+                shape[0] = size
+                self.writer.run(lambda writer: fit_fields_of_view(writer.server), wait=False)
+
+        client.camera.on_update(resized)
 
     # ---------------------------------------------------------------- requests
 
@@ -162,7 +180,8 @@ class VizApp:
         with self.session.lock:
             constraints = self.constraint_controls.constraints()
             request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints,
-                                           chosen_steps=self.sampling.chosen_steps)  # fmt: skip
+                                           chosen_steps=self.sampling.chosen_steps,
+                                           follow_from=self.constraint_controls.follow_from())  # fmt: skip
             if self.panel.new_seed.value:  # the new seed shown, so a good draw can be kept: by the loop
                 self.writer.run(lambda writer: setattr(writer.panel.seed, "value", request.seed), wait=False)
             return self.worker.submit(self._job(request), self._solved, self._failed)

@@ -13,6 +13,7 @@ import numpy as np
 
 Camera = tuple[tuple[float, float, float], tuple[float, float, float]]  # (position, look_at)
 FRAMING = 1.55  # camera height over the half-width of what it frames (the planar view's top-down look)
+VERTICAL_FOV = np.radians(75.0)  # viser's field of view, vertical: a window narrower than tall sees less across
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,7 @@ def over_the_point(point, height: float, camera) -> np.ndarray:
     """(3,) where a marker `height` above the plane draws exactly over `point` (2,) on it, seen from `camera` (3,).
 
     On the ray from the camera to the point: straight above it, the perspective camera would draw the
-    lifted target cross 15 to 25 px off where the tips meet (issue 19). Exact for the initial camera
+    lifted target cross 15 to 25 px off where the tips meet (a measured miss). Exact for the initial camera
     every tab starts with; orbiting the view shifts it by at most height / distance of the radius.
     """
     ground = np.array([float(point[0]), float(point[1]), 0.0])
@@ -77,6 +78,30 @@ def camera_fit_3d(center: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndar
 
 REACH_DISTANCE = 1.15  # times (1, -1, 0.6): 1.77 reach radii from the point looked at
 LOOK_ABOVE_BASE = 0.25  # in reach radii
+
+
+def field_of_view(aspect: float) -> float:
+    """The vertical field of view (radians) for a canvas `aspect` (width / height) wide: viser's own where the canvas
+    is at least as wide as tall, wider where it is taller, so that it sees across as much as a square canvas does.
+
+    The cameras are framed for viser's vertical field of view (the same camera for every tab, so the lifted target
+    cross is aimed once); with a fixed vertical angle a tall window saw across less than that, and cut the
+    planar reach circle at both sides.
+    """
+    if not np.isfinite(aspect) or aspect <= 0:
+        raise ValueError(f"aspect: expected a canvas width / height > 0, got {aspect!r}")
+    return float(2.0 * np.arctan(np.tan(VERTICAL_FOV / 2) / min(1.0, aspect)))
+
+
+def fit_fields_of_view(server) -> None:
+    """Widen the field of view of each tab whose canvas is taller than wide (and narrow it back when it is not)."""
+    for client in server.get_clients().values():
+        try:
+            width, height = client.camera.image_width, client.camera.image_height
+        except AssertionError:  # viser's way of saying the page has not sent its camera yet
+            continue
+        if width > 0 and height > 0:
+            client.camera.fov = field_of_view(width / height)  # viser sends it only when it changes
 
 
 def move_cameras(server, camera) -> None:

@@ -17,6 +17,7 @@ from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
 from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, shown_layers
 from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, trail_colors
+from ikdp_viz.style import TARGET_RED
 
 HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
 # darkens a mesh and the Panda's links are near black in their own shadows
@@ -51,7 +52,7 @@ class ChainKind:
     # error is 9.8 mm / 3.0 deg against DPM-Solver++(2M)-10's 24.4 mm / 8.6 deg, for 210 ms a solve instead of
     # 12 (benchmarks/viz_robot_settings.py); the steps apply when the user picks a sampler that skips some.
     default_sampler = ("ddpm", 10)
-    # A robot's model with a distilled student opens on it (issue 27, deliver 3): a new target's first frame after
+    # A robot's model with a distilled student opens on it: a new target's first frame after
     # a few network evaluations, the teacher's full DDPM one click away (student.py)
     opens_on_student = True
     chart_error, chart_unit, chart_scale = "hand position error", "mm", 1000.0  # view.tip_error is in metres
@@ -97,8 +98,8 @@ class ChainKind:
         return chain_readouts.chain_model_text(solver.arm, solver.timesteps, solver.metadata)
 
     def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
-        note = "  \n(moved inside the reach ball)" if clamped else ""
-        return chain_readouts.pose_text(target) + note
+        note = "  \n(out of reach: moved onto the reach ball, which bounds every pose the arm reaches)"
+        return chain_readouts.pose_text(target) + (note if clamped else "")
 
     def target_words(self, target: np.ndarray) -> str:
         """The target in a recording's label."""
@@ -165,38 +166,46 @@ class ChainKind:
             solved.view, state, highlight, sampler=request.sampler_label, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, reason=reason,
         )  # fmt: skip
+        miss = chain_readouts.miss_text(solved.view, request.solver.arm, beyond_reach=request.target_clamped)
+        text += "" if miss is None else "  \n" + miss
         return text + (f"  \n**Newest solve failed** {error}" if error else "")
 
     def legend_entries(self, settings, *, constraint_colors: bool, view, solved) -> list[Entry]:
         """What each colour of the 3-D scene means now, for the panel's legend (and a recording's)."""
         follows = follows_one(settings.trail_of)
-        if constraint_colors:  # robots and skeletons green or red, the highlighted robot too (finding 10)
-            robots = [Entry(Swatch(HOLDS), self.holds_text), Entry(Swatch(VIOLATES), self.violates_text)]
+        if constraint_colors:  # robots and skeletons green or red, the highlighted robot too
+            robots = [Entry(Swatch(HOLDS), self.holds_text, True), Entry(Swatch(VIOLATES), self.violates_text, True)]
         else:
             robots = [
                 Entry(
                     Swatch(HIGHLIGHTED_ROBOT if follows else ACCENT_DARK),
                     "highlighted robot (opaque), at the step shown",
+                    True,
                 ),  # fmt: skip
                 Entry(Swatch(GHOST_DARK, faint=GHOST_FAINT), "the other robots (see-through), t = T → 0"),
-                Entry(Swatch(OTHERS_FINAL if follows else DARK, faint=FAINT), "skeletons: joint origins to the hand"),
+                Entry(
+                    Swatch(OTHERS_FINAL if follows else DARK, faint=FAINT), "skeletons: joint origins to the hand", True
+                ),  # fmt: skip
             ]
         trail = "trail (show trail): the highlighted hand's path" if follows else "trail (show trail): the hands' paths"
         if settings.recording:  # no panel to turn it on or off
             trail = trail.replace(" (show trail)", "")
         hand = Entry(Swatch((220, 40, 40)), "hand frame of the highlighted robot: x red, y green, z blue")
-        trail_entry = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT) if follows else Swatch(DARK, faint=FAINT), trail)
+        ramp = Swatch(ACCENT_DARK, faint=ACCENT_FAINT) if follows else Swatch(DARK, faint=FAINT)
+        trail_entry = Entry(ramp, trail, True)
         if settings.recording:  # a static page: what it draws alone, the target a frame no one can drag
             target = Entry(Swatch((220, 25, 25)), "target: the frame at the target pose, x red, y green, z blue")
             return [*robots, *([trail_entry] if settings.show_trail else []), hand,
                     *shown_layers(settings, solved), target]  # fmt: skip
+        # a comparison draws the same target beside, as a frame with a red origin
+        compared_target = "; beside, its frame" if getattr(solved, "compare", None) is not None else ""
         entries = [
             *robots,
             *([trail_entry] if settings.show_trail else []),  # listed only while drawn, as every layer
             hand,
             *shown_layers(settings, solved),
-            # the 3-D target is the gizmo, no red cross (finding 10: the legend listed one)
-            Entry(Swatch((220, 25, 25)), "target: the gizmo's pose (drag its arrows and rings)"),
+            # the 3-D target is the gizmo, no red cross (the legend must not list one)
+            Entry(Swatch(TARGET_RED), "target: the gizmo's pose (drag its arrows and rings)" + compared_target),
         ]
         measure = getattr(view, "rotation_measure", "rotation") if view is not None else "rotation"
         if measure not in ("rotation", "none"):

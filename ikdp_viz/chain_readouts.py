@@ -81,6 +81,29 @@ def chain_solve_text(
     return "  \n".join(lines)
 
 
+def miss_text(view: ChainView, arm, *, beyond_reach: bool) -> str | None:
+    """What the panel says when the best returned pose (refined when refinement is on) misses the target by more
+    than the arm's tolerance (1 mm, 1°); None when it reaches.
+
+    It says "out of reach" only where the target lies beyond the reach: its position as asked lay outside the
+    reach ball, which bounds every pose the arm reaches, so the point solved (moved onto the ball) is the nearest
+    there can be, and the best pose's miss of it is the nearest reached pose's. Inside the ball the model's miss
+    proves nothing of the reach, so the miss is said plainly, with no cause.
+    """
+    best = view.best_sample()
+    position, rotation = view.final_position_error[best], view.final_rotation_error[best]
+    measure = view.rotation_measure
+    if position <= arm.position_tolerance and (measure == "none" or rotation <= arm.rotation_tolerance):
+        return None
+    pair = error_pair(position, rotation, measure)
+    if beyond_reach:
+        return (f"**Out of reach**: the target lies beyond the arm's reach; the nearest pose reached (sample "
+                f"{best + 1}) misses it by {pair}")  # fmt: skip
+    tolerance = f"{1000 * arm.position_tolerance:g} mm"
+    tolerance += "" if measure == "none" else f" / {np.degrees(arm.rotation_tolerance):g}°"
+    return f"**No sample reaches the target**: the best (sample {best + 1}) misses it by {pair}, beyond {tolerance}"
+
+
 def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
     """A chain checkpoint's robot, schedule, denoiser and the accuracy measured when it was saved."""
     model, metrics = metadata.get("model", {}), metadata.get("metrics", {})

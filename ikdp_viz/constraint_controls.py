@@ -13,8 +13,8 @@ only reads (a copy of the list, whole values), from whichever thread asks for a 
 - add obstacle: a sphere (a disc on a planar arm) with a gizmo to drag it, between the base
   and the target; its radius is the panel's at the time it is dropped;
 - stay near the last pose: every solve is pulled toward the pose last kept (ikdp.NearPose);
-- follow: stay near, and keep (highlight) the sample nearest the last pose: dragging the target
-  keeps the arm on one continuous solution; the readout gives the largest joint jump so far;
+- follow: ikdp.tracking's step from the last pose kept (solver.track's, one target at a time): dragging
+  the target keeps the arm on one continuous solution; the readout gives the largest joint jump so far;
 - colour by constraint: the highlighted sample at every state of the reverse process, green
   where the constraints hold and red where not (constraint_scene.py), and every sample on screen
   by the same rule at the state shown (the scene writer's `constraint_tints`).
@@ -33,15 +33,13 @@ from ikdp_viz.constraint_scene import (
     TARGET_KINDS,
     beside_the_arm,
     build_constraints,
-    follow_choice,
     holds,
-    is_branch_switch,
     overlay_segments,
 )
 from ikdp_viz.lock_fields import lock_fields
 from ikdp_viz.scene import line_colors
+from ikdp_viz.style import OBSTACLE
 
-OBSTACLE_COLOR = (200, 60, 60)
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
 FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
 
@@ -97,8 +95,9 @@ class ConstraintControls:
             self.clear_button = gui.add_button("Clear obstacles")
             self.stay_near = gui.add_checkbox("stay near the last pose", False, hint="Pull every solve toward it")
             self.follow = gui.add_checkbox(
-                "follow (one continuous solution)", False, hint="Stay near, and keep the sample nearest the last pose"
-            )
+                "follow (one continuous solution)", False,
+                hint="Each target from the last pose as solver.track goes: the nearest pose that reaches it",
+            )  # fmt: skip
             self.color_states = gui.add_checkbox(
                 "colour poses by constraint",
                 True,
@@ -143,7 +142,7 @@ class ConstraintControls:
         if not (self.stay_near.value or self.follow.value):
             self.largest_jump, self.branch_switches = 0.0, 0
         if not self.follow.value and self.highlight_set is not None:
-            # follow mode had set the highlight to the sample it kept: give "best" back (finding 8), unless the
+            # follow mode had set the highlight to the sample it kept: give "best" back, unless the
             # user chose another sample since
             panel, number = self.highlight_set
             self.highlight_set = None
@@ -157,9 +156,13 @@ class ConstraintControls:
         """The panel's constraints now, as ikdp constraint objects (any thread: it only reads)."""
         locks = self.locks()[0]
         obstacles = [(entry["position"], entry["radius"]) for entry in tuple(self.obstacles)]  # the loop may add one
-        near = self.last_pose if (self.stay_near.value or self.follow.value) else None
+        near = self.last_pose if (self.stay_near.value and not self.follow.value) else None  # follow: track's own
         kind = "full pose" if self.target_kind is None else str(self.target_kind.value)
         return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar", target_kind=kind)
+
+    def follow_from(self) -> np.ndarray | None:
+        """The pose follow mode's next step goes from (any thread: it only reads); None while not following."""
+        return self.last_pose if self.follow.value else None
 
     def locks(self) -> tuple[dict[int, float], list[str]]:
         """The locked joints' values (rad or m) from the fields, and a note per value wrapped or clamped."""
@@ -195,7 +198,7 @@ class ConstraintControls:
         """Drop an obstacle (where `obstacle_drop` puts it when no position is given); returns its index. Any
         thread: it runs on the drawing loop and waits for it."""
         added: list[int] = []
-        self.on_loop(lambda writer: added.append(self._add_obstacle(position, radius)), wait=True)
+        self.on_loop(lambda writer: (added.append(self._add_obstacle(position, radius)), self._said(writer)), wait=True)
         return added[0]
 
     def _add_obstacle(self, position, radius: float | None) -> int:
@@ -210,6 +213,10 @@ class ConstraintControls:
         self.on_change()
         return index
 
+    def _said(self, writer) -> None:
+        """The legend lists the obstacles while any is drawn (drawing loop's thread)."""
+        writer.show_obstacles(len(self.obstacles))
+
     def move_obstacle(self, index: int, position) -> None:
         """The obstacle's gizmo callback: the loop moves it and asks for a solve."""
         position = np.asarray(position, dtype=np.float64)
@@ -222,11 +229,12 @@ class ConstraintControls:
         self.on_loop(move, wait=False)
 
     def clear_obstacles(self, ask: bool = True) -> None:
-        def clear(_) -> None:
+        def clear(writer) -> None:
             removed, self.obstacles = self.obstacles, []
             for entry in removed:
                 for node in entry["nodes"]:
                     node.remove()
+            self._said(writer)
             if ask:
                 self.on_change()
 
@@ -235,8 +243,8 @@ class ConstraintControls:
     # ------------------------------------------------------------------ after a solve
 
     def after_solve(self, solved, panel, writer) -> None:
-        """Drawing loop's thread, as a solve goes on screen: keep the pose (follow: the nearest sample that
-        reaches, highlighted), write the readouts."""
+        """Drawing loop's thread, as a solve goes on screen: keep the pose (follow: the one tracking's step kept,
+        highlighted), write the readouts."""
         writer.followed = bool(self.follow.value)
         if solved.final_angles is not None and solved.request.model is self.solver:  # not a replaced model's
             self._after_solve(solved, panel)
@@ -247,15 +255,13 @@ class ConstraintControls:
         errors = view.final_error  # a robot's counts the rotation (or a free axis's angle): a turned hand is a miss
         if solved.state_violation is not None and holds(solved.state_violation[-1]).any():
             errors = np.where(holds(solved.state_violation[-1]), errors, np.inf)  # a sample through an obstacle
-            # is no candidate (finding 4)
+            # is no candidate
         following = bool(self.follow.value)
-        choice, jump = follow_choice(
-            self.solver.arm, solved.final_angles, self.last_pose if following else None, errors
-        )
-        switched = False
-        if following and self.last_pose is not None:
-            kept = solved.final_angles[choice]
-            switched = is_branch_switch(self.solver.arm, self.last_pose, solved.request.target, kept, jump)
+        choice, jump, switched = int(np.argmin(errors)), 0.0, False  # the first pose followed: the best
+        if following and solved.followed is not None:  # tracking's step: its pose, jump and branch switch
+            choice = solved.followed_sample
+            jump = float(solved.followed.kept.joint_jumps[0])
+            switched = bool(solved.followed.kept.branch_switches[0])
             self.branch_switches += int(switched)
         if following:
             self.largest_jump = max(self.largest_jump, jump)
@@ -312,7 +318,7 @@ def free_axis_segments(axis: np.ndarray, reach: float) -> np.ndarray:
 
 def obstacle_drop(arm, last_pose, radius: float) -> np.ndarray:
     """(3,) where a new obstacle goes: on the middle of the arm as it stands, so the easy solution is blocked (a
-    robot's just in front of it, toward the camera, or its opaque meshes hide the sphere: finding 4)."""
+    robot's just in front of it, toward the camera, or its opaque meshes hide the sphere)."""
     if last_pose is None:
         return np.array([0.3 * arm.span, 0.3 * arm.span, 0.0])
     points = arm.forward_kinematics(np.asarray(last_pose, dtype=np.float64)[None])[0].numpy()
@@ -331,8 +337,8 @@ def obstacle_nodes(server, index: int, entry: dict, *, planar: bool, moved) -> l
         active_axes=(True, True, not planar), position=tuple(entry["position"]),
     )  # fmt: skip
     sphere = server.scene.add_icosphere(
-        f"/constraints/obstacle_{index}/sphere", radius=entry["radius"], color=OBSTACLE_COLOR,
-        # a robot's: denser and flat-lit, so it reads as a red ball in front of the dark meshes
+        f"/constraints/obstacle_{index}/sphere", radius=entry["radius"], color=OBSTACLE,
+        # a robot's: denser and flat-lit, so it reads as a ball in front of the dark meshes
         opacity=0.45 if planar else 0.6, material="standard" if planar else "toon3",
         subdivisions=2, cast_shadow=False, receive_shadow=False,
     )  # fmt: skip

@@ -1,7 +1,7 @@
 """The Constraints folder's readout after a solve (markdown), from plain values: no viser here.
 
 What the target asks, how many samples meet the constraints and from which step the kept one
-does, follow mode's jumps, and, in words, why nothing reaches or meets (findings 4, 5, 16):
+does, follow mode's step and jumps, and, in words, why nothing reaches or meets:
 a lock clamped or wrapped, no sample meeting the constraints, no sample reaching the target.
 """
 
@@ -35,6 +35,8 @@ def readout_text(solved, choice: int, jump: float | None, largest_jump: float, l
             f"**stay near: every pulled sample missed the target** (best {solved.pull_missed:.3g} away); "
             "shown: the same noise solved without the pull"
         )
+    if jump is not None and solved.followed is not None:
+        lines.append(followed_text(solved.followed, choice))
     if jump is not None:
         lines.append(f"joint jump {jump:.3f} rad, largest so far **{largest_jump:.3f} rad**")
         if switched:
@@ -42,6 +44,17 @@ def readout_text(solved, choice: int, jump: float | None, largest_jump: float, l
         if switches:
             lines.append(f"branch switches so far: {switches}")
     return "  \n".join(lines) if lines else "No constraint."
+
+
+def followed_text(step, choice: int) -> str:
+    """What follow mode (ikdp.tracking's step) kept for this target."""
+    if not bool(step.kept.reached[0]):
+        return ("**follow: no pose reaches the target**; the arm stays on its branch, stretched toward it "
+                f"(sample {choice + 1}'s returned pose)")  # fmt: skip
+    if step.sample is None:
+        return (f"follow: kept the last pose moved onto the target, nearer than every sample (drawn as sample "
+                f"{choice + 1}'s returned pose)")  # fmt: skip
+    return f"follow: kept sample {choice + 1}, the nearest of those that reach the target"
 
 
 # what each checked constraint's failure means to a user, and what to do (ikdp constraint name -> words)
@@ -53,7 +66,7 @@ FAILING_WORDS = {
 
 def unmet_reasons(solved, *, reaches: bool | None = None) -> list[str]:
     """Why no sample meets the constraints, or reaches the target, in words: which constraint fails in how many
-    of the K raw samples at t = 0, and whether the locks keep the hand from the target (findings 4, 16). [] when
+    of the K raw samples at t = 0, and whether the locks keep the hand from the target. [] when
     some sample meets them and reaches. Both readouts say it: the main one and the Constraints folder's."""
     names = {item.name for item in solved.request.constraints}
     if not names:
@@ -73,9 +86,10 @@ def unmet_reasons(solved, *, reaches: bool | None = None) -> list[str]:
             failure, remedy = FAILING_WORDS["obstacles"]
             why.append(f"every one {failure}: {remedy}")
         lines.append(f"**no sample meets the constraints**: {'; '.join(why) or 'try more samples (K)'}")
-    if not reaches and "locked_joints" in names:
+    caused = not reaches and bool(solved.reaches_unconstrained)  # the same noise, freed, reaches
+    if caused and "locked_joints" in names:
         lines.append("**no sample reaches the target with these locks**: the locked joints keep the hand from it; "
                      "unlock one or change its value")  # fmt: skip
-    elif not reaches and "obstacles" in names:
+    elif caused and "obstacles" in names:
         lines.append("**no sample reaches the target past the obstacles**: move them, or make them smaller")
     return lines

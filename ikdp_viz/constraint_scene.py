@@ -3,18 +3,15 @@
 No viser here. The overlay draws one sample's pose at every state of the reverse process,
 green where the constraints hold (to HOLDS_TOLERANCE) and red where they do not, so the user
 sees at which step the constraint takes hold; `sample_tints` colours every sample at every
-state the same way, for the K poses on screen. Follow mode keeps, of the K samples, the one
-nearest the previous pose, and reports the largest joint jump. A pose model's target may be
+state the same way, for the K poses on screen. A pose model's target may be
 partial (TARGET_KINDS): the position only, or the hand free to turn about one of its axes.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 import ikdp
-from ikdp.constraint_base import joint_difference
 from ikdp.guidance import ConstraintSet
 
 HOLDS = (40, 170, 80)  # a state whose pose meets the constraints
@@ -104,7 +101,7 @@ def segment_distances(point: np.ndarray, points: np.ndarray) -> np.ndarray:
 def beside_the_arm(points: np.ndarray, radius: float, camera: np.ndarray, clearance: float) -> np.ndarray:
     """(3,) where a dropped 3-D sphere of `radius` is seen: from the middle joint of the pose shown, toward the
     camera until it clears every link by `clearance`. Dropped on the middle joint itself it sat inside the opaque
-    robot and could not be seen (issue 25, finding 4); here it stands just in front of it, one drag away."""
+    robot and could not be seen; here it stands just in front of it, one drag away."""
     points = np.asarray(points, dtype=np.float64)
     middle = points[len(points) // 2]
     toward = np.asarray(camera, dtype=np.float64) - middle
@@ -176,30 +173,3 @@ def overlay_segments(points: np.ndarray, violation: np.ndarray) -> tuple[np.ndar
     colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS_FAINT), np.array(VIOLATES_FAINT))
     colors = np.broadcast_to(colors, segments.shape).astype(np.uint8)
     return segments.reshape(-1, 2, 3), colors.reshape(-1, 2, 3)
-
-
-def is_branch_switch(arm, previous: np.ndarray, target: np.ndarray, kept: np.ndarray, jump: float) -> bool:
-    """Whether follow mode's kept pose changed branch: ikdp.tracking's rule (a jump above its floor and many
-    times the joint move that going from `previous` to `target` needs), so the viewer flags what track() flags."""
-    from ikdp.tracking import branch_switches, needed_jumps
-
-    def as_row(values):
-        return torch.as_tensor(np.asarray(values), dtype=torch.float64)[None]
-
-    needed = needed_jumps(arm, as_row(target), as_row(previous)[0], as_row(kept))
-    return bool(branch_switches(torch.tensor([jump], dtype=needed.dtype), needed)[0])
-
-
-def follow_choice(arm, final_angles: np.ndarray, previous: np.ndarray | None, errors: np.ndarray) -> tuple[int, float]:
-    """The sample to keep in follow mode and its largest joint jump from `previous` (radians / metres).
-
-    With no previous pose, the sample with the smallest error; else the nearest of those within
-    10x the best error (so a sample that misses the target is not kept for being near).
-    """
-    if previous is None:
-        return int(np.argmin(errors)), 0.0
-    angles = torch.as_tensor(final_angles, dtype=torch.float64)
-    jump = joint_difference(arm, angles, torch.as_tensor(previous, dtype=torch.float64)).abs().amax(dim=-1).numpy()
-    good = errors <= max(10 * float(errors.min()), 1e-3 * arm.span)
-    choice = int(np.argmin(np.where(good, jump, np.inf)))
-    return choice, float(jump[choice])

@@ -12,11 +12,12 @@ import viser
 
 from ikdp_viz.record import file_name
 
-PICTURE_WORDS = ("trail", "highlighted", "constraints", "skeletons:")  # the legend's entries a flat picture draws too
 
+def export_picture(solved, settings, solver, legend=None):
+    """The export.Drawing of `solved` as `settings` show it: the arm kind's flat picture, colours and clock.
 
-def export_picture(solved, settings, solver):
-    """The export.Drawing of `solved` as `settings` show it: the arm kind's flat picture, colours and clock."""
+    `legend`: the entries of the frame on screen (frame.Frame.legend), of which the picture lists those it draws
+    too (`Entry.flat`); None: built for `settings` as a frame would."""
     from ikdp_viz.arm_kinds import arm_kind
     from ikdp_viz.clock import solve_noise_levels, state_offsets
     from ikdp_viz.export import drawing
@@ -30,11 +31,9 @@ def export_picture(solved, settings, solver):
     palette = kind.palette(solved, highlight, settings.trail_of, constraint_colors)
     polylines, target, circle, _ = kind.flat_picture(solved)
     sigmas = solve_noise_levels(solver, view)
-    legend = [
-        entry
-        for entry in kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
-        if entry.text.split()[0] in PICTURE_WORDS
-    ]
+    if legend is None:
+        legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
+    legend = [entry for entry in legend if entry.flat]
     legend.append(Entry(Swatch(TARGET_RED, "cross"), "target"))  # fmt: skip
     title = (f"IKDP {request.sampler_label}, K = {view.num_samples}, seed {request.seed}: "
              f"{kind.target_words(request.target)}")  # fmt: skip
@@ -67,14 +66,15 @@ class Downloads:
 
     def export(self, folder: Path, progress=None) -> tuple[Path, Path]:
         """Write the solve on screen as `<stem>.gif` (the denoising) and `<stem>_trail.png` into `folder`, for
-        either arm, with the viewer's colours, clock and highlighted sample (finding 12; deliver 3).
+        either arm, with the viewer's colours, clock and highlighted sample, and the legend of the frame on screen.
 
         `progress(done, total)` is called after each GIF frame (export.write_gif).
         """
         from ikdp_viz.export import write_gif, write_trail_png
 
         solved, settings, solver, frame = self.snapshot("export")
-        picture = export_picture(solved, settings, solver)
+        same = frame is not None and frame.solved is solved  # the frame the snapshot holds is of this solve
+        picture = export_picture(solved, settings, solver, legend=frame.legend if same else None)
         stem = file_name(solved).removesuffix(".html")
         gif = write_gif(picture, Path(folder) / f"{stem}.gif", seconds=settings.seconds, progress=progress)
         png = write_trail_png(picture, Path(folder) / f"{stem}_trail.png")
@@ -85,7 +85,7 @@ class Downloads:
 
         The tab sees one notification per export, replacing its last one: the GIF's frames as they
         render, then the two names. The files are saved at once (viser's `save_immediately`): without
-        it viser shows a link per file to click, and the links pile up (issue 19).
+        it viser shows a link per file to click, and the links pile up.
         """
         import tempfile
 

@@ -3,7 +3,7 @@
 Drawn with matplotlib (Agg), no browser, from the same colours the viewer uses (the arm kind's
 palette: the followed sample's trail faint to dark, the others light) and on the viewer's clock
 (clock.py: each GIF frame shows the state the animation has reached at its time, so the noisy
-steps pass as fast as in the viewer; finding 12). A robot is drawn as its skeletons seen from the
+steps pass as fast as in the viewer). A robot is drawn as its skeletons seen from the
 viewer's camera (an orthographic projection). The PNG has a title and the legend. No viser here.
 """
 
@@ -17,6 +17,7 @@ import numpy as np
 from ikdp_viz.emphasis import emphasis_colors, follows_one
 
 TARGET_RED = "#dc1919"
+TITLE_BAND = 40  # pixels above the trail PNG's picture, for its title
 
 
 @dataclass(frozen=True)
@@ -58,13 +59,14 @@ def drawing(solved, polylines, target, *, circle, highlight: int, trail_of: str,
     )  # fmt: skip
 
 
-def _figure(picture: Drawing, size_pixels: int):
+def _figure(picture: Drawing, size_pixels: int, band: int = 0):
+    """A figure `size_pixels` square for the picture and `band` pixels above it (free for a title)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
 
     dpi = 100
-    figure = Figure(figsize=(size_pixels / dpi, size_pixels / dpi), dpi=dpi)
-    axes = figure.add_axes((0, 0, 1, 1))
+    figure = Figure(figsize=(size_pixels / dpi, (size_pixels + band) / dpi), dpi=dpi)
+    axes = figure.add_axes((0, 0, 1, size_pixels / (size_pixels + band)))
     (cx, cy), half = picture.center, picture.half_width
     axes.set_xlim(cx - half, cx + half)
     axes.set_ylim(cy - half, cy + half)
@@ -97,10 +99,13 @@ def _draw_state(axes, picture: Drawing, state: int, *, trail: bool) -> None:
 
 
 def write_trail_png(picture: Drawing, path: Path, *, size_pixels: int = 800) -> Path:
-    """The paper's Fig. "vis" as the viewer draws it at t = 0, with a title and the legend (finding 12)."""
-    figure, axes = _figure(picture, size_pixels)
+    """The paper's Fig. "vis" as the viewer draws it at t = 0, with the legend, under a band with the title:
+    `size_pixels` square for the picture, `TITLE_BAND` pixels more on top
+    (a title inside it ran over the reach circle)."""
+    figure, axes = _figure(picture, size_pixels, band=TITLE_BAND)
     _draw_state(axes, picture, picture.num_states - 1, trail=True)
-    axes.text(0.02, 0.98, picture.title, transform=axes.transAxes, ha="left", va="top", fontsize=11)
+    figure.text(0.02, 1 - 0.5 * TITLE_BAND / (size_pixels + TITLE_BAND), picture.title, ha="left", va="center",
+                fontsize=11)  # fmt: skip
     handles = [_legend_handle(entry) for entry in picture.legend]
     axes.legend(handles=handles, loc="lower left", fontsize=7, frameon=True, framealpha=0.85)
     path = Path(path)

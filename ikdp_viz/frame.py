@@ -4,7 +4,7 @@ The drawing loop (scene_writer.py) takes one snapshot (the solve on screen, the 
 shown, the panel's view settings) and builds a `Frame` from it with `build_frame`; the arm
 view draws its nodes from the frame, and the panel's texts and chart are the frame's own.
 So the highlighted sample, the step, the colours and the words cannot disagree: they are
-computed once, here (issue 25). No viser here.
+computed once, here. No viser here.
 """
 
 from __future__ import annotations
@@ -38,23 +38,24 @@ class ViewSettings:
     joint_space: bool = False  # the joint-space view is on (its colours join the legend)
     prior: bool = False  # poses drawn from the prior are on screen (until the next solve; their colour joins the
     # legend)
+    obstacles: int = 0  # obstacles drawn (the Constraints folder's; their colour joins the legend)
     recording: bool = False  # a static page (record.py): the legend lists only what the page draws, and no
     # control to drag or click
 
     @classmethod
     def from_panel(cls, panel, *, color_by_constraint: bool = True, followed: bool = False,
-                   prior: bool = False) -> ViewSettings:  # fmt: skip
+                   prior: bool = False, obstacles: int = 0) -> ViewSettings:  # fmt: skip
         return cls(
             highlight=str(panel.highlight.value), trail_of=str(panel.learn.trail_of.value),
             show_trail=bool(panel.show_trail.value), show_estimate=bool(panel.show_estimate.value),
             clock=str(panel.learn.clock.value), seconds=float(panel.duration.value) or 4.0,
             color_by_constraint=color_by_constraint, followed=followed,
-            joint_space=bool(panel.joint_space.show.value), prior=prior,
+            joint_space=bool(panel.joint_space.show.value), prior=prior, obstacles=obstacles,
         )  # fmt: skip
 
 
 def best_sample(solved) -> int:
-    """The sample "best" names: the smallest error at t = 0 among those meeting the constraints there (finding 4:
+    """The sample "best" names: the smallest error at t = 0 among those meeting the constraints there (else
     "best" highlighted a robot through an obstacle); of all samples when none meets them, or there are none."""
     view, violation = solved.view, getattr(solved, "state_violation", None)
     if violation is None or not holds(violation[-1]).any():
@@ -120,12 +121,14 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     palette = palettes.get(kind, solved, highlight, settings.trail_of, constraint_colors)
     light = animating_to is not None and state < animating_to
     text = kind.solve_text(solved, state, highlight, highlight_reason(settings, highlight, solved), error)
-    if solved.preview_of is not None:  # say which is shown (deliver 6)
+    if solved.preview_of is not None:  # say which is shown
         text = (f"**Fast preview** ({solved.request.sampler_label}, {view.num_states - 1} steps) while the "
                 f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
     text += "".join("  \n" + line for line in unmet_reasons(solved))  # why, here too: the folder starts closed
+    if solved.request.compare_note is not None:
+        text += "  \n" + solved.request.compare_note
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:

@@ -32,7 +32,7 @@ FRAME_STRONG = (140, 140, 140)  # the border and the zero lines
 FRAME_WEAK = (196, 196, 196)  # the lines at +-pi/2
 ARROW = (185, 150, 215)  # the denoiser's arrows: a light shade of the x̂0 ghost's purple
 SOLUTION = (220, 25, 25)  # the target's red: the exact solution set (N = 2)
-FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red (finding 6)
+FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red, which means the exact solutions
 BACKING = (255, 255, 255)
 # Heights above the square, in units of the reach, so that the top-down view draws samples over
 # solutions over arrows over the frame.
@@ -163,7 +163,7 @@ class JointSpaceNodes:
             add("/joint_space/y_label", second, position=(cx - 1.04 * half, cy, 0.0), anchor="center-right"),
             add("/joint_space/title", f"{first}, {second} (headings): arrows x_t → x̂0 at the step shown",
                 position=(cx, cy + 1.04 * half, 0.0), anchor="bottom-center"),
-            # the ends of each axis (finding 6: no ±π ticks): -π and π are the same heading, the torus's seam
+            # the ends of each axis, so the reader sees the range: -π and π are the same heading, the torus's seam
             add("/joint_space/x_low", "−π", position=(cx - half, cy - 1.01 * half, 0.0), anchor="top-center"),
             add("/joint_space/x_high", "π", position=(cx + half, cy - 1.01 * half, 0.0), anchor="top-center"),
             add("/joint_space/y_low", "−π", position=(cx - 1.01 * half, cy - half, 0.0), anchor="center-right"),

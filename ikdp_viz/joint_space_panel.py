@@ -34,7 +34,7 @@ class JointSpaceControls:
         """`moved` was set to the joint the other dropdown names: move the other to the next joint, on screen too.
 
         A square of one joint against itself is a line; the view used to draw the next joint silently while
-        both dropdowns said the same one (issue 19).
+        both dropdowns said the same one.
         """
         other = self.second if moved is self.first else self.first
         if moved.value != other.value:

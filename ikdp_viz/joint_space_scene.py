@@ -45,7 +45,7 @@ class Square:
 
 def square_beside(reach: float, clear_of: float | None = None) -> Square:
     """The square to the right of a workspace of radius `reach` (the base at the origin), level with it; with
-    `clear_of`, its left edge past x = clear_of too (the ground grid's edge: it overlapped the grid, finding 6)."""
+    `clear_of`, its left edge past x = clear_of too (the ground grid's edge: a square over the grid is hard to read)."""
     left = (1 + GAP) * reach if clear_of is None else max((1 + GAP) * reach, clear_of + 0.5 * GAP * reach)
     return Square(centre=(left + SIDE / 2 * reach, 0.0), side=SIDE * reach, z=0.0)
 
@@ -105,7 +105,7 @@ def cross_segments(square: Square, points: np.ndarray, lift: float) -> np.ndarra
     arm = CROSS_CELLS * square.side
     strokes = [np.stack((centres - offset, centres + offset), axis=1) for offset in ((arm, arm, 0), (arm, -arm, 0))]
     segments = np.stack(strokes, axis=1).reshape(-1, 2, 3)
-    (cx, cy), half = square.centre, square.side / 2  # a cross on an edge is cut there (finding 6: they spilled)
+    (cx, cy), half = square.centre, square.side / 2  # a cross on an edge is cut there, not spilled outside
     segments[..., 0] = np.clip(segments[..., 0], cx - half, cx + half)
     segments[..., 1] = np.clip(segments[..., 1], cy - half, cy + half)
     return segments

@@ -23,6 +23,7 @@ class Swatch:
 class Entry:
     swatch: Swatch
     text: str  # what the colour means, plain text
+    flat: bool = False  # the flat picture of a solve (export.py's PNG) draws it too, so its legend lists it
 
 
 def css(color: tuple[int, int, int]) -> str:
@@ -35,8 +36,11 @@ def swatch_html(swatch: Swatch) -> str:
     if swatch.shape not in {"line", "dot", "cross"}:
         raise ValueError(f"swatch.shape: expected line, dot or cross, got {swatch.shape!r}")
     box = "display:inline-block;vertical-align:middle;margin-right:6px;"
-    if swatch.shape == "dot":
-        return f'<span style="{box}width:10px;height:10px;border-radius:50%;background:{css(swatch.color)}"></span>'
+    if swatch.shape == "dot":  # one marker; with `faint`, its two halves the colours it takes at t = T and t = 0
+        fill = css(swatch.color)
+        if swatch.faint is not None:
+            fill = f"linear-gradient(to right, {css(swatch.faint)} 50%, {css(swatch.color)} 50%)"
+        return f'<span style="{box}width:10px;height:10px;border-radius:50%;background:{fill}"></span>'
     if swatch.shape == "cross":
         return f'<span style="{box}width:10px;text-align:center;font-weight:700;color:{css(swatch.color)}">✕</span>'
     fill = css(swatch.color)

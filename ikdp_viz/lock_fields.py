@@ -2,8 +2,8 @@
 
 A revolute joint is typed in degrees (a planar arm's heading too), a prismatic one in mm; the
 field's range is the joint's limits. A joint without limits (a continuous joint, or a planar
-heading) takes any angle and is wrapped into (-180, 180] (finding 5: "θ1 value" took 90 and
-used 90 rad). No viser here.
+heading) takes any angle and is wrapped into (-180, 180] (typed as
+degrees, never read as radians). No viser here.
 """
 
 from __future__ import annotations

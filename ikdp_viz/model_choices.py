@@ -114,6 +114,6 @@ def adopt_model(app, writer, solver, student=None, on_student: bool = False) -> 
         writer.panel.checkpoint.value = app._current_checkpoint_label()
         writer.panel.steps.max = solver.timesteps  # here too, before NewModel is applied: show_steps reads it
         app.sampling.show_steps()  # the new model's T, when its sampler takes all steps
-        # the old target asked again: pulled into the new workspace, the panel says "clamped" (issue 19)
+        # the old target asked again: pulled into the new workspace, the panel says "clamped" if it was moved
         same_kind_of_target = np.shape(previous) == np.shape(app.session.target)
         app.move_target(previous if same_kind_of_target else app.session.target)

@@ -58,7 +58,7 @@ def plot_axes(low: int, high: int, unit: str) -> tuple:
     """The chart's axes: t along x; along y the error as plain numbers at each decade low..high, in `unit`.
 
     The y values are log10 of the error (see `plot_scales`); ticks say the errors themselves (0.01, 0.1, 1),
-    and both axes name their units (issue 19: a robot's chart plotted log10 metres, unsaid).
+    and both axes name their units (a log10 of metres, unsaid, reads as metres).
     """
     decades = tuple(float(exponent) for exponent in range(int(low), int(high) + 1))
     return (
@@ -112,7 +112,7 @@ def build_panel(
 ) -> Panel:
     # The panel in a column of its own beside the canvas, not floating over it: the canvas has a quarter fewer
     # pixels and the page stops compositing the panel over each frame (software WebGL, K = 16 animating:
-    # 11.7 and 12.7 frames/s floating, 14.2 to 17.0 docked; docs/VIZ.md).
+    # 11.7 and 12.7 frames/s floating, 14.2 to 17.0 docked; docs/viewer.md, "Frames in the page").
     gui.main_panel.dock_right()
     with gui.add_folder("Target"):
         target_text = gui.add_markdown("")

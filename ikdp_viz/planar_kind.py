@@ -15,11 +15,11 @@ from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OT
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
 from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, TIP_DARK, TIP_FAINT, fade_colors
-from ikdp_viz.style import ESTIMATE, PRIOR, TARGET_RED
+from ikdp_viz.style import ESTIMATE, OBSTACLE, PRIOR, TARGET_RED
 
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
 PLAYING_FOLLOWED_STATES = 12  # the same for the one sample followed (the default picture)
-JOINT_SPACE_DOT = (60, 60, 60)  # the joint-space view's dots of the other samples: dark at every step (finding 6)
+JOINT_SPACE_DOT = (60, 60, 60)  # the joint-space view's dots of the other samples: dark at every step
 
 
 @dataclass(frozen=True)
@@ -94,7 +94,7 @@ class PlanarKind:
         return palette.arms
 
     def light_trail_states(self, trail_of: str) -> int:
-        """How many trail states a playing frame shows (docs/VIZ.md: software WebGL pays for every segment)."""
+        """How many trail states a playing frame shows (software WebGL pays for every segment drawn)."""
         return PLAYING_FOLLOWED_STATES if follows_one(trail_of) else PLAYING_TRAIL_STATES
 
     def palette(self, solved, highlight: int, trail_of: str, constraint_colors: bool) -> PlanarPalette:
@@ -119,25 +119,32 @@ class PlanarKind:
     def legend_entries(self, settings, *, constraint_colors: bool, view, solved) -> list[Entry]:
         """What each colour of the planar scene means now, for the panel's legend (and a recording's)."""
         if follows_one(settings.trail_of):
-            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0")
-            others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)")
+            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0", True)
+            others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)", True)
+            # one dot at the step shown, pale near t = T and orange near t = 0: a ramp line read as a row of tips
+            tips = Entry(
+                Swatch(TIP_DARK, "dot", TIP_FAINT), "tip of the highlighted sample, at the step shown (pale → orange)"
+            )
         else:
-            trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0")
-            others = Entry(Swatch(DARK, faint=FAINT), "the other samples")
-        highlighted = Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown")
+            trail = Entry(Swatch(DARK, faint=FAINT), "trails of all samples: t = T → 0", True)
+            others = Entry(Swatch(DARK, faint=FAINT), "the other samples", True)
+            tips = Entry(Swatch(TIP_DARK, "dot", TIP_FAINT), "tips of all samples, at the step shown (pale → orange)")
+        highlighted = Entry(Swatch(ACCENT_DARK), "highlighted sample, at the step shown", True)
         entries = [trail] if settings.show_trail else []  # listed only while drawn, as every layer
-        if constraint_colors:  # the arms are green or red then, the highlighted one in full (finding 10)
+        if constraint_colors:  # the arms are green or red then, the highlighted one in full
+            if settings.show_trail and not follows_one(settings.trail_of):  # its trail stays blue among the grey
+                entries.append(Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample"))
             entries += [
-                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.holds_text),
-                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), self.violates_text),
+                Entry(Swatch(HOLDS, faint=HOLDS_OTHERS), self.holds_text, True),
+                Entry(Swatch(VIOLATES, faint=VIOLATES_OTHERS), self.violates_text, True),
             ]
         else:
             entries += [highlighted, others]
-        entries.append(Entry(Swatch(TIP_DARK, faint=TIP_FAINT), "tips: t = T → 0"))
+        entries.append(tips)
         entries += [*shown_layers(settings, solved), Entry(Swatch(TARGET_RED, "cross"), "target")]
         if settings.recording:  # a static page: what it draws alone (no joint space)
             return entries
-        if settings.joint_space and view is not None:  # the square's marks (finding 6: its ✕ read as "target")
+        if settings.joint_space and view is not None:  # the square's marks, named apart from the target's ✕
             if view.num_links == 2:
                 entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's exact solutions"))
             else:
@@ -147,10 +154,10 @@ class PlanarKind:
 
 
 def shown_layers(settings, solved) -> list[Entry]:
-    """The legend's x̂0, refined and prior entries, for both arm kinds, live and recorded: only while the scene
-    draws them. x̂0 while the settings show it, the refined poses when the solve shown was polished, the prior's
-    draw while it is on screen (never on a recording's page). The viewer listed all three whatever it drew, and a
-    recorded Panda page did too."""
+    """The legend's x̂0, refined, prior, comparison and obstacle entries, for both arm kinds, live and recorded: only
+    while the scene draws them. x̂0 while the settings show it, the refined poses when the solve shown was polished,
+    the prior's draw while it is on screen, the compared sampler's poses beside the arm and the obstacles while drawn
+    (none on a recording's page)."""
     entries = []
     if settings.show_estimate:
         control = "" if settings.recording else " (show x̂0)"  # a recording has no panel to turn it on or off
@@ -159,4 +166,9 @@ def shown_layers(settings, solved) -> list[Entry]:
         entries.append(Entry(Swatch(REFINED), "refined at t = 0 (DLS polish)"))
     if settings.prior and not settings.recording:
         entries.append(Entry(Swatch(PRIOR), "poses drawn from the prior"))
+    if getattr(solved, "compare", None) is not None and not settings.recording:  # a test's solve may lack it
+        sampler = solved.request.compare_sampler
+        entries.append(Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), f"beside, titled: {sampler} from the same x_T"))
+    if settings.obstacles and not settings.recording:
+        entries.append(Entry(Swatch(OBSTACLE, "dot"), "obstacle: no link may touch it (drag its arrows)"))
     return entries

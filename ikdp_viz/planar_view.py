@@ -78,11 +78,18 @@ class PlanarView:
                 "/base", base.vertices, base.faces, color=(90, 90, 90), cast_shadow=False, receive_shadow=False
             )
         )
+        # The page's control (drei's PivotControls) limits the sum of the drags since it was drawn, not the
+        # position: limits of +-reach would be +-reach around the first target. So the limits are the reach
+        # around the base less where the control was first drawn and every move of the server's that stuck
+        # (`_translation_limits`); the corners of that square beyond the circle are clamped and said so.
+        self._drag_origin = np.array([float(self.target[0]), float(self.target[1])])
+        self._dragging = False  # a move the server makes mid-drag is overwritten by the page's next pointer move
         self.gizmo = scene.add_transform_controls(
             "/target", scale=0.7 * unit, active_axes=(True, True, False), disable_rotations=True,
-            translation_limits=((-outer, outer), (-outer, outer), (0.0, 0.0)), depth_test=False,
+            translation_limits=self._translation_limits(), depth_test=False,
             position=(float(self.target[0]), float(self.target[1]), 0.0),
         )  # fmt: skip
+        self.gizmo.on_update(self._track_drag)  # first: viser awaits async callbacks in the order given
         self.gizmo.on_update(self._gizmo_update)
         cross = meshes.cross_mesh(self.sizes.cross)
         self.cross = scene.add_mesh_simple(
@@ -94,7 +101,7 @@ class PlanarView:
     def _grid(self, half_width: float):
         """The ground grid out to `half_width`: a line every half bone length, darker every bone length."""
         # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
-        # 82 lines cost the page as much as the 16 arms (docs/VIZ.md)
+        # 82 lines cost the page as much as the 16 arms (docs/viewer.md, "Frames in the page")
         unit = self.unit
         grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
         colors = np.broadcast_to(
@@ -117,11 +124,23 @@ class PlanarView:
             # viser skips a position equal to its copy, but while a drag goes past the boundary the page's
             # gizmo follows the pointer beyond the clamped point the server holds: on release, send it again.
             position = np.array([float(target[0]), float(target[1]), 0.0])
+            if not self._dragging:
+                self._drag_origin += position[:2] - np.asarray(self.gizmo.position, dtype=np.float64)[:2]
             if force:
                 self.gizmo.position = position + (1e-3, 0.0, 0.0)
             self.gizmo.position = position
+            self.gizmo.translation_limits = self._translation_limits()
         # the cross is no child of the gizmo: during a drag past the boundary it stays on the clamped point
         self.aim_cross(camera_position)
+
+    async def _track_drag(self, event: viser.TransformControlsEvent) -> None:
+        self._dragging = event.phase != "end"
+
+    def _translation_limits(self) -> tuple:
+        """The page control's limits on its summed drags that keep the target in the square of the reach about
+        the base: the drags start from `_drag_origin`, where it was drawn plus the server's moves since."""
+        (x, y), outer = self._drag_origin, self.reach
+        return ((-outer - x, outer - x), (-outer - y, outer - y), (0.0, 0.0))
 
     def aim_cross(self, camera_position) -> None:
         """Put the cross where the camera at `camera_position` sees it on the target (viser skips an equal one)."""
@@ -132,8 +151,8 @@ class PlanarView:
         return over_the_point(self.target, TARGET_LIFT * self.sizes.joint, camera_position)
 
     def hide_target_controls(self) -> None:
-        """A recording: the gizmo cannot be dragged there, the cross alone marks the target (finding 2); the grid
-        reaches past the sides of a page without a panel (finding 16: it ended in a visible rectangle)."""
+        """A recording: the gizmo cannot be dragged there, the cross alone marks the target; the grid
+        reaches past the sides of a page without a panel (a narrower one ended in a visible rectangle)."""
         self.gizmo.visible = False
         self._static_nodes[0].remove()
         self._static_nodes[0] = self._grid(float(np.ceil(2.5 * self.reach / self.unit)) * self.unit)
@@ -183,7 +202,7 @@ class PlanarView:
         self.joints.batched_colors = np.repeat(joint_colors, num_links + 1, axis=0)
         self._write_joint_scales(num_samples, num_links, highlight, follows_one(trail_of))
         self.tips.batched_positions = placement.tip_positions
-        if follows_one(trail_of):  # the other samples' tips too would cover the picture with K dots (issue 25)
+        if follows_one(trail_of):  # the other samples' tips too would cover the picture with K dots
             self.tips.batched_scales = (np.arange(num_samples) == highlight).astype(np.float32)
         else:
             self.tips.batched_scales = np.ones(num_samples, np.float32)
@@ -196,7 +215,7 @@ class PlanarView:
 
     def _write_joint_scales(self, num_samples: int, num_links: int, highlight: int, follows: bool) -> None:
         """Following one sample, only its joints are drawn (the others are light lines): fewer spheres for the page
-        to draw in every frame (docs/VIZ.md); written only when the followed sample or the setting changes."""
+        to draw in every frame (docs/viewer.md); written only when the followed sample or the setting changes."""
         key = (num_samples, num_links, highlight, follows)
         if key == self._joint_scales_key:
             return

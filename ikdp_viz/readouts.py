@@ -22,7 +22,7 @@ def sample_note(view, highlight: int, reason: str | None, error_name: str, raw_b
 
     The note sits in parentheses before the numbers, which are the highlighted sample's: with
     refinement, "best" ranks the refined poses, and the sample whose raw pose ranks first is named
-    on a line of its own (issue 25, finding 7: named before the numbers, it read as their owner).
+    on a line of its own (named before the numbers, it would read as their owner).
     `reason` says why this sample is followed ("the best", "kept by follow mode", "chosen in the panel");
     None: "the best" when it is, else nothing.
     """

@@ -54,9 +54,10 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
     """The HTML page of `solved` (solving.Solved) denoising from t = T to 0, drawn as the viewer draws it.
 
     The arm view draws each state from the same `Frame` the viewer builds (frame.py), on a private
-    server; the target is the view's own marker (its gizmo hidden: no second marker, finding 2), the
-    step label sits where the camera sees it for both arms (finding 3), and the legend of the frame's
-    colours is laid over the page's corner (finding 16); viser's software-WebGL toast is not shown.
+    server; the target is the view's own marker (its gizmo hidden: no second marker), the
+    step label sits where the camera sees it for both arms, and the legend of the frame's
+    colours is laid over the page's corner (a recording has no panel to explain them); viser's
+    software-WebGL toast is not shown.
     """
     import viser
 
@@ -102,7 +103,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
 
 def label_position(arm_view) -> tuple[float, float, float]:
     """Where the step label is in view: above the planar arm's circle, or over a robot's reach ball as its camera
-    sees it (1.1 reach above the ball's centre was outside the view: the Panda's page showed no label, finding 3)."""
+    sees it (1.1 reach above the ball's centre was outside the view: the Panda's page showed no label)."""
     camera = arm_view.camera()
     if camera is None:
         return 0.0, 1.1 * arm_view.reach, 0.0
@@ -113,7 +114,7 @@ def label_position(arm_view) -> tuple[float, float, float]:
 def with_legend(page: str, entries) -> str:
     """`page` (viser's static client) with the legend in a box at its bottom left, above the playback bar (at the
     page's foot it covered the bar's time field), and no notification toasts:
-    a recording has nothing to notify, and the software-WebGL one covered the scene (finding 11)."""
+    a recording has nothing to notify, and the software-WebGL one covered the scene."""
     box = (
         '<div id="ikdp-legend" style="position:fixed;left:12px;bottom:52px;z-index:1000;background:rgba(255,255,255,'
         '0.88);padding:6px 10px;border-radius:6px;font-family:sans-serif;max-width:340px">'

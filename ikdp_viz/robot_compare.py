@@ -1,9 +1,9 @@
-"""Same noise, two samplers, for a robot: the second sampler's skeletons beside the robot (issue 25, deliver 3).
+"""Same noise, two samplers, for a robot: the second sampler's skeletons beside the robot.
 
 The planar comparison (compare.py) draws a second workspace to the left; a robot's is its K
 skeletons at the state nearest the same diffusion time, shifted along -y by the width of the
 reach ball and a gap, coloured as the main skeletons, with the target's frame and a label
-naming each side. The drawing loop frames the camera over both (`camera`).
+naming each side just above its own final skeletons. The drawing loop frames the camera over both (`camera`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,18 @@ from ikdp_viz.camera import camera_fit_3d
 from ikdp_viz.chain_scene import skeleton_segments
 from ikdp_viz.robot_view import SKELETON_PIXELS
 from ikdp_viz.scene import nearest_state
+from ikdp_viz.style import TARGET_RED
 
 SHIFT = 2.4  # the second robot's base from the first, in reach radii along -y
+TITLE_ABOVE = 0.08  # a title's gap over the highest joint of its side's final poses, in reach radii
+
+
+def title_position(points: np.ndarray, reach: float) -> tuple[float, float, float]:
+    """Where a side's title goes: over the middle of its final poses' joints `points` (K, J, 3), just above the
+    highest (a title at a fixed height over the base floated far above poses that stay low)."""
+    joints = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    low, high = joints.min(axis=0), joints.max(axis=0)
+    return (float((low[0] + high[0]) / 2), float((low[1] + high[1]) / 2), float(high[2] + TITLE_ABOVE * reach))
 
 
 class RobotCompareNodes:
@@ -25,6 +35,7 @@ class RobotCompareNodes:
         self.server = server
         self.nodes: dict = {}
         self.shift: np.ndarray | None = None  # (3,) while shown
+        self._titled = None  # the solve whose final poses the titles were placed over
 
     @property
     def shown(self) -> bool:
@@ -55,6 +66,10 @@ class RobotCompareNodes:
         request = solved.request
         self.nodes["title"].text = request.compare_title(compare.num_states - 1)
         self.nodes["main_title"].text = request.title(solved.view.num_states - 1) + ": same x_T"
+        if self._titled is not solved:  # once a solve: each title over its own side's final poses
+            self.nodes["title"].position = title_position(compare.points[-1] + self.shift, reach)
+            self.nodes["main_title"].position = title_position(solved.view.points[-1], reach)
+            self._titled = solved
 
     def _build(self, solved, reach: float) -> None:
         scene = self.server.scene
@@ -67,7 +82,7 @@ class RobotCompareNodes:
             thickness_units="screen",
         )  # fmt: skip
         self.nodes["target"] = scene.add_frame(
-            "/compare/target", axes_length=0.1 * reach, axes_radius=0.006 * reach,
+            "/compare/target", axes_length=0.1 * reach, axes_radius=0.006 * reach, origin_color=TARGET_RED,
             position=tuple(target[:3] + self.shift), wxyz=tuple(float(value) for value in wxyz),
         )  # fmt: skip
         top = base + (0.0, 0.0, 1.2 * reach)
@@ -79,4 +94,4 @@ class RobotCompareNodes:
     def remove(self) -> None:
         for node in self.nodes.values():
             node.remove()
-        self.nodes, self.shift = {}, None
+        self.nodes, self.shift, self._titled = {}, None, None

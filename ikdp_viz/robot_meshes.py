@@ -9,7 +9,7 @@ error: the viewer must open for any chain.
 The K translucent ghosts get `light_mesh`es: software WebGL pays for every triangle
 of every ghost in every frame (16 Panda ghosts are 37,000 triangles), and a faint
 ghost reads as well with a 44-face hull. The hull is built here (`convex_hull`), not by
-trimesh, whose hull needs scipy, which no user extra installs (issue 19: a `[viz,robots]`
+trimesh, whose hull needs scipy, which no user extra installs (without it a `[viz,robots]`
 install drew nothing).
 """
 

@@ -6,13 +6,13 @@ For K samples at one state it draws:
   node per mesh with K instances (the highlighted one scaled to nothing: a translucent
   instance drawn before an opaque one in the same node hides it). While an animation plays,
   the ghosts are hidden and the skeletons stand in for them: software WebGL animated K = 16
-  at 6 frames/s with them, 15 without (docs/VIZ.md); a pause, the last state and the slider
+  at 6 frames/s with them, 15 without (docs/viewer.md); a pause, the last state and the slider
   show them;
 - the K skeletons (joint origins to the hand) as one line-segment node, and as the trail the
   path of each hand through the states before, as another;
 - the highlighted sample's hand frame, and the target as a 6-DoF gizmo that sets the pose.
-Every part of one frame is drawn from the same state (finding 9: the skeletons came from the
-returned, refined pose at the end while the meshes did not, or the other way round).
+Every part of one frame is drawn from the same state: otherwise the skeletons could show the
+returned, refined pose at the end while the meshes did not, or the other way round.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The Sampling folder's controls that depend on each other: K and the highlight, the sampler and its steps.
 
 A sampler that takes all T steps (DDPM) shows T on a disabled slider, the student its own few
-(student.py); the steps the user chose for one that can skip some come back with it (issue 19).
+(student.py); the steps the user chose for one that can skip some come back with it.
 Each change asks for a solve.
 """
 
@@ -42,7 +42,7 @@ class SamplingControls:
             self.panel.teacher_student.label = switch_label(on_student, self.session.solver, student)
 
     def on_switch(self) -> None:
-        """The button: the student's few steps <-> the teacher's full DDPM (one click, issue 27 deliver 3)."""
+        """The button: the student's few steps <-> the teacher's full DDPM (one click, to compare the two)."""
         self.panel.sampler.value = "ddpm" if self.panel.sampler.value == STUDENT else STUDENT
 
     def on_samples(self) -> None:
@@ -79,7 +79,8 @@ class SamplingControls:
 
     def show_steps(self) -> None:
         """The steps slider: the user's choice for a sampler that can skip steps; else disabled at T, the steps
-        it does take (issue 19: DDPM showed a stale number). The user's choice comes back with such a sampler."""
+        it does take (not a stale number left from another sampler). The user's choice comes back with such a
+        sampler."""
         steps = self.panel.steps
         fixed = self.fixed_steps()
         if fixed is not None and not steps.disabled:

@@ -210,7 +210,7 @@ class ArmPlacement:
     """K arms drawn as the paper's figure draws them: each link a line segment, a small sphere on each joint and tip.
 
     Lines, not lit cylinders: software WebGL spends on each triangle, and K = 16 capsule arms
-    (11,800 triangles) cost the page more than everything else in the scene (docs/VIZ.md).
+    (11,800 triangles) cost the page more than everything else in the scene (docs/viewer.md).
     """
 
     link_segments: np.ndarray  # (K*N, 2, 3) each bone's start and end

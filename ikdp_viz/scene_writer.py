@@ -19,6 +19,7 @@ import viser
 
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.camera import fit_fields_of_view
 from ikdp_viz.clock import solve_noise_levels, state_offsets
 from ikdp_viz.frame import Frame, Palettes, ViewSettings, build_frame, highlighted_sample
 from ikdp_viz.message_loop import MessageLoop
@@ -60,6 +61,7 @@ class SceneWriter:
         self.error: str | None = None  # the newest solve's failure, shown in the readouts
         self.animation: Animation | None = None  # the playing animation, None when still
         self.color_by_constraint = True  # the Constraints folder's "colour poses by constraint"
+        self.obstacles = 0  # obstacles the Constraints folder draws (the legend lists them)
         self.followed = False  # follow mode keeps the highlighted sample (the Constraints folder says)
         self.after_solve = None  # called here with each solve put on screen (the Constraints folder's follow mode)
         self._panel_written = -np.inf  # time.monotonic() of the last state written to the panel
@@ -97,7 +99,8 @@ class SceneWriter:
     def settings(self) -> ViewSettings:
         """The panel's view settings now (read on this thread, once per frame)."""
         return ViewSettings.from_panel(self.panel, color_by_constraint=self.color_by_constraint,
-                                       followed=self.followed, prior=self.view.prior_lines is not None)  # fmt: skip
+                                       followed=self.followed, prior=self.view.prior_lines is not None,
+                                       obstacles=self.obstacles)  # fmt: skip
 
     def highlight_index(self) -> int:
         """The 0-based sample the highlight dropdown names, for the solve on screen (0 before any)."""
@@ -168,7 +171,7 @@ class SceneWriter:
         if wanted and self.panel.play_on_move.value and self.panel.duration.value > 0 and last > 0:
             if not self.wait_for_tab or self.server.get_clients():
                 self._start(0, last)
-            else:  # no one would see it play: show pure noise, and play when a tab opens (finding 11)
+            else:  # no one would see it play: show pure noise, and play when a tab opens
                 self._unseen = True
                 self._draw_state(0)
         else:
@@ -189,6 +192,12 @@ class SceneWriter:
         """Colour the samples by constraint, or not; redraws the state on screen (this thread only)."""
         self.color_by_constraint = bool(on)
         self._redraw()
+
+    def show_obstacles(self, count: int) -> None:
+        """`count` obstacles are drawn now: the legend says so with the picture on screen (this thread only)."""
+        if count != self.obstacles:
+            self.obstacles = int(count)
+            self._redraw()
 
     def _play_from_start(self, *, user: bool) -> None:
         """Play the solve on screen from t = T: on a user's Play, or (if "play on move" is on) after a drag."""
@@ -269,9 +278,10 @@ class SceneWriter:
         self.stage.draw(frame, self.solver)
 
     def _tab_opened(self, client) -> None:
-        """A tab connected: hide viser's software-WebGL toast, which covered the scene's top left (finding 11),
+        """A tab connected: hide viser's software-WebGL toast, which covered the scene's top left,
         and play the solve on screen if no one has seen it play (the page opened on pure noise)."""
         hide_toast(client)
+        fit_fields_of_view(self.server)
         if self._unseen and self.solved is not None:
             self._unseen = False
             self._play_from_start(user=False)

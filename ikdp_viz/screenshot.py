@@ -7,7 +7,7 @@ once the final pose is drawn. Needs the test extras (playwright) and chromium.
 Each picture of the viewer (not the `--moments` series) carries a stamp (a PNG text chunk) of what its panel
 showed: the controls' labels, the chart's title, axes and series, and the legend. tests/test_viz_docs_images.py
 builds the same panel from the command the docs give and compares: a README picture of a chart or control that
-no longer exists fails there (issue 25, finding 15: docs/screenshot.png showed a removed chart).
+no longer exists fails there (so a picture never shows a chart the viewer has dropped).
 """
 
 from __future__ import annotations

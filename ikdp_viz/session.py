@@ -53,6 +53,7 @@ class Session:
         animate: bool = True,
         constraints: tuple = (),
         chosen_steps: int | None = None,
+        follow_from: np.ndarray | None = None,
     ) -> SolveRequest:
         """A solve of the current target with the panel's settings (a new seed first, if the panel asks).
 
@@ -77,6 +78,8 @@ class Session:
             constraints=tuple(constraints),
             student=self.student,
             teacher=None if solver is self.solver else self.solver,
+            follow_from=follow_from,
+            target_clamped=self.target_clamped,
         )
 
     def sampling(self, choice: str, steps: int | None) -> tuple[ikdp.Solver, str, int | None]:
@@ -92,7 +95,9 @@ class Session:
         """The comparison the panel asks for: another sampler (or the student, or from it the teacher) from the
         same x_T, unless it is the sampler itself."""
         other = str(panel.learn.compare.value)
-        if other == "off" or other == choice or (other not in SAMPLERS and other not in (STUDENT, TEACHER)):
+        if other == choice:  # nothing drawn beside it: said, or the choice looks broken
+            return {"compare_note": f"compare with: **{other}** is the sampler shown: nothing to compare"}
+        if other == "off" or (other not in SAMPLERS and other not in (STUDENT, TEACHER)):
             return {}
         if other in (STUDENT, TEACHER) and self.student is None:
             return {}

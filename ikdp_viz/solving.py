@@ -16,15 +16,17 @@ import numpy as np
 import torch
 
 import ikdp
+from ikdp.constraint_base import joint_difference
+from ikdp.tracking import TrackStep, track_step
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
-from ikdp_viz.constraint_scene import checkable, final_violations, partial_target, state_violation
+from ikdp_viz.constraint_scene import NEAR_WEIGHT, checkable, final_violations, partial_target, state_violation
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.student import matched_its_teacher, sampler_label, solve_title, student_sampling, target_title
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
-PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first (deliver 6): 5 steps, about 40 ms here
+PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first: 5 steps, about 40 ms here
 REACH_FRACTION = 0.01  # a returned pose within this share of the arm's span reaches the target (1e-2: 0.04 bone
 # lengths on ikdp_n4, 12 mm on the Panda; ikdp_n4 unpulled lands 0.010 away, a pull that lost the target 0.15)
 
@@ -47,8 +49,12 @@ class SolveRequest:
     compare_spacing: str | None = None  # its timestep grid (None: the model's default for it)
     constraints: tuple = ()  # ikdp constraints from the Constraints panel (constraint_controls.py)
     compare_solver: ikdp.Solver | None = None  # the model the comparison runs (student.py); None: `solver`
+    compare_note: str | None = None  # why no comparison runs though one was chosen (the readout says it)
     student: ikdp.Solver | None = None  # the few-step student in sight (student.py): a drag's preview runs it
     teacher: ikdp.Solver | None = None  # the session's model when `solver` is its student; None: `solver` is it
+    follow_from: np.ndarray | None = None  # follow mode: the pose kept last, from which ikdp.tracking's step goes
+    target_clamped: bool = False  # the point asked for lay outside the workspace (a robot's reach ball): `target` is
+    # the nearest point inside it
 
     @property
     def model(self) -> ikdp.Solver:
@@ -86,10 +92,14 @@ class Solved:
     state_violation: np.ndarray | None = None  # (S+1, K) each state's constraint violation (checkable ones: not
     # a partial target alone)
     pull_missed: float | None = None  # "stay near": the best error of the pulled samples, which all missed the
-    # target, so the solve shown is the one without the pull (issue 25, finding 1); None: the pull was kept or off
-    preview_of: str | None = None  # a fast solve shown while the full one with this sampler runs (deliver 6)
+    # target, so the solve shown is the one without the pull; None: the pull was kept or off
+    preview_of: str | None = None  # a fast solve shown while the full one with this sampler runs
     final_violations: tuple = ()  # ((constraint name, (K,) violation at t = 0), ...) one per checked constraint:
-    # which one fails, for the readouts' "why none meets" (finding 4)
+    # which one fails, for the readouts' "why none meets"
+    followed: TrackStep | None = None  # follow mode: ikdp.tracking's step to this target
+    followed_sample: int | None = None  # the sample whose returned pose is drawn as the pose that step kept
+    reaches_unconstrained: bool | None = None  # where no pose reaches under locks or obstacles: whether the same
+    # noise solved without them reaches (they cause the miss) or not (they do not); None: not asked
 
     @property
     def reaches(self) -> bool:
@@ -99,10 +109,10 @@ class Solved:
 
 def preview_request(request: SolveRequest) -> SolveRequest | None:
     """A fast solve to show first while `request` runs, or None: during a robot's drag (not animated), when the
-    sampler takes many steps. The model's few-step student where there is one (issue 27, deliver 3), else
+    sampler takes many steps. The model's few-step student where there is one, else
     DPM-Solver++(2M) in 5 steps: in 10, a Panda solve took 12 ms unloaded (benchmarks/viz_robot_settings.py) but
-    73 ms on a shared 2-core machine, against DDPM's 120-740 ms; so the arm follows the gizmo at once (issue 25,
-    deliver 6; benchmarks/viz_robot_drag.py)."""
+    73 ms on a shared 2-core machine, against DDPM's 120-740 ms; so the arm follows the gizmo at once
+    (benchmarks/viz_robot_drag.py)."""
     solver, (sampler, steps) = request.solver, PREVIEW_SAMPLER
     if request.student is not None:
         solver, (sampler, steps) = request.student, student_sampling(request.student)
@@ -169,7 +179,23 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
             raise Cancelled
         return result
 
-    result = run(request.constraints)
+    followed = followed_sample = None
+    if request.follow_from is not None:
+        # follow mode is ikdp.tracking's step itself (the pulled solve, the previous pose refined onto the target as
+        # one more candidate, the nearest that reaches kept, or the branch held), so the viewer keeps what
+        # solver.track keeps
+        generator.set_state(after_noise)
+        followed = track_step(
+            solver, request.target, request.follow_from, weight=NEAR_WEIGHT, constraints=list(request.constraints),
+            num_samples=request.num_samples, sampler=request.sampler, steps=request.steps,
+            refine_steps=request.refine_steps, generator=generator, return_trajectory=True, return_estimates=True,
+            callback=stop_when(cancel), initial_noise=noise,
+        )  # fmt: skip
+        if followed.solve.stopped:
+            raise Cancelled
+        result, followed_sample = kept_in_its_sample(solver.arm, followed)
+    else:
+        result = run(request.constraints)
     pull_missed = None
     if any(item.name == NEAR_POSE for item in request.constraints):
         # As ikdp.track does: a pull toward the last pose that leaves every sample short of the target is not
@@ -179,6 +205,15 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
             unpulled = run(tuple(item for item in request.constraints if item.name != NEAR_POSE))
             if landing_error(unpulled) < best:
                 result, pull_missed = unpulled, best
+    # a pull is no constraint that holds or fails (it was counted as holding for every sample), nor is a
+    # partial target, which the errors measure
+    checked = tuple(item for item in request.constraints if item.name != NEAR_POSE)
+    # A miss is blamed on the locks or obstacles only where they cause it: the same noise solved without them
+    # reaches. The comparison costs a second solve, made only when no pose reaches.
+    reaches_unconstrained = None
+    if checkable(checked) and landing_error(result) > REACH_FRACTION * solver.arm.span:
+        free = run(tuple(item for item in checked if not checkable([item])))  # a partial target stays
+        reaches_unconstrained = landing_error(free) <= REACH_FRACTION * solver.arm.span
     solve_seconds = time.perf_counter() - started
     partial = partial_target(request.constraints)  # the errors measure what the target asks (position only, ...)
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
@@ -193,9 +228,6 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
         if other.stopped:
             raise Cancelled
         compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
-    # a pull is no constraint that holds or fails (it was counted as holding for every sample, finding 1), nor is a
-    # partial target, which the errors measure
-    checked = tuple(item for item in request.constraints if item.name != NEAR_POSE)
     violation = state_violation(request.solver, checked, result) if checkable(checked) else None
     final = final_violations(request.solver, checked, result) if violation is not None else ()
     return Solved(
@@ -209,4 +241,25 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
         violation,
         pull_missed,
         final_violations=final,
+        followed=followed,
+        followed_sample=followed_sample,
+        reaches_unconstrained=reaches_unconstrained,
     )
+
+
+def kept_in_its_sample(arm, step: TrackStep) -> tuple[ikdp.SolveResult, int]:
+    """The step's solve with the pose it kept as one sample's returned pose, and that sample: the kept sample
+    itself, or, where the kept pose is the previous one moved onto the target, the sample nearest it (its
+    denoising drawn, the kept pose drawn where the returned poses are)."""
+    result = step.solve
+    if step.sample is not None:
+        return result, step.sample
+    kept = step.kept.angles[0]
+    slot = int(joint_difference(arm, result.angles[0], kept).norm(dim=-1).argmin())
+    angles, tip_error = result.angles.clone(), result.tip_error.clone()
+    angles[0, slot], tip_error[0, slot] = kept, step.kept.position_error[0]
+    rotation_error = result.rotation_error
+    if rotation_error is not None:
+        rotation_error = rotation_error.clone()
+        rotation_error[0, slot] = step.kept.rotation_error[0]
+    return dataclasses.replace(result, angles=angles, tip_error=tip_error, rotation_error=rotation_error), slot

@@ -3,8 +3,8 @@
 The arm view (planar_view.py or robot_view.py, picked by arm_kinds.py) owns the arm's nodes;
 the side views of a planar arm (the joint-space square, the comparison's second workspace)
 own theirs and report the part of the plane they cover. `frame_camera` frames the camera over
-all that is shown, the only place that moves it (issue 25: three camera writers each framed
-their own view, and with two side views on, one was out of frame).
+all that is shown, the only place that moves it (several camera writers each framing their own
+view left one side view out of frame), and widens each tall tab's field of view.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ikdp_viz.arm_kinds import arm_view_class, compare_view_class
-from ikdp_viz.camera import camera_over, move_cameras
+from ikdp_viz.camera import camera_over, fit_fields_of_view, move_cameras
 from ikdp_viz.joint_space_nodes import JointSpaceNodes
 
 
@@ -24,7 +24,7 @@ class Stage:
         # No environment map: its reflections wash dark materials out to grey; the default lights stay.
         server.scene.configure_environment_map(hdri=None)
         # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
-        # them, 27-29 without (docs/VIZ.md)
+        # them, 27-29 without
         server.scene.configure_default_lights(cast_shadow=False)
         self.view = arm_view_class(solver)(server, solver, target, gizmo_update)
         self.joint_space = JointSpaceNodes(server, panel.joint_space)  # the torus beside a planar arm
@@ -57,6 +57,7 @@ class Stage:
             move_cameras(self.server, camera)
             self._camera = key
             self.view.aim_cross(np.asarray(camera[0], dtype=np.float64))
+        fit_fields_of_view(self.server)  # each tab's canvas shape, which the one camera cannot know
 
     def rebuild(self, solver, target: np.ndarray) -> None:
         """Another model: the side views go, the arm view is built for its arm, the camera framed again."""

@@ -1,8 +1,8 @@
-"""A model's few-step student in the viewer (issue 27, deliver 3): found beside its teacher, offered as a sampler.
+"""A model's few-step student in the viewer: folded into its teacher's file, offered as a sampler.
 
 A student of `python -m ikdp.distill` is its teacher's network trained so that a few DDIM steps
-land where the teacher's long sampler lands from the same noise. When the folder of models holds
-a student of the model the viewer opens, the Sampling folder offers it as the sampler "student"
+land where the teacher's long sampler lands from the same noise. When the model the viewer opens
+holds a student (`python -m ikdp.ship --student`), the Sampling folder offers it as the sampler "student"
 (a robot's default: a new target's first frame comes after a few network evaluations, not a
 hundred); one button switches to the teacher's full DDPM and back; "compare with" draws the other
 from the very same x_T; and a robot's drag shows the student while the teacher's solve runs.
@@ -34,24 +34,6 @@ def is_student_of(record: dict | None, teacher: ikdp.Solver) -> bool:
     return same_file and record.get("teacher_metrics") == teacher.metadata.get("metrics")
 
 
-def find_student(teacher: ikdp.Solver, folder: Path | None) -> ikdp.Solver | None:
-    """The first student of `teacher` (by file name) among the checkpoints in `folder`, loaded; None if none.
-
-    A student is never given a student of its own, and a file ikdp cannot read is skipped (the Model
-    dropdown says why when it is picked).
-    """
-    if folder is None or not Path(folder).is_dir() or teacher.metadata.get("distill"):
-        return None
-    for path in sorted(Path(folder).glob("*.pt")):
-        header = checkpoint_header(path)
-        if header is not None and is_student_of(header.distill, teacher):
-            try:
-                return ikdp.load(path, device=teacher.device)
-            except (ikdp.CheckpointError, OSError, RuntimeError):
-                continue
-    return None
-
-
 def find_teacher(student: ikdp.Solver, folder: Path | None) -> ikdp.Solver | None:
     """The teacher of `student` in `folder` (the file its record names, with the recorded metrics), loaded; None if
     `student` is no student or its teacher is not there."""
@@ -69,13 +51,13 @@ def find_teacher(student: ikdp.Solver, folder: Path | None) -> ikdp.Solver | Non
 
 
 def model_and_student(solver: ikdp.Solver, folder: Path | None) -> tuple[ikdp.Solver, ikdp.Solver | None]:
-    """The (model, student) a viewer opens for `solver`: a teacher with its student when the folder holds one; a
-    student opened itself comes with its teacher when the folder holds that (its own network then serves the
+    """The (model, student) a viewer opens for `solver`: a teacher with the student folded into its file (ikdp.ship);
+    a student opened itself comes with its teacher when the folder holds that (its own network then serves the
     student's sampler, and the teacher's full denoising stays one click away); otherwise (solver, None)."""
     teacher = find_teacher(solver, folder)
     if teacher is not None:
         return teacher, solver
-    return solver, find_student(solver, folder)
+    return solver, solver.student
 
 
 def student_sampling(student: ikdp.Solver) -> tuple[str, int]:

@@ -9,4 +9,5 @@ ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
 ARM_PIXELS = 5.0  # the K arms' links, screen pixels (the joints' spheres are about twice as wide at the default zoom)
+OBSTACLE = (190, 30, 150)  # magenta: an obstacle dropped on the arm stays apart from the red of a failing pose
 COMPARE_STROKE = "#2a9d5c"  # the chart's line of the compared sampler

@@ -57,10 +57,12 @@ def tiny_chain_checkpoint(tmp_path_factory):
 @pytest.fixture(scope="session")
 def tiny_chain_student(tiny_chain_checkpoint, tmp_path_factory):
     """(teacher path, student path, their folder): a copy of the tiny Panda model and a 2-step student distilled
-    from it by ikdp.distill, in a folder of their own."""
+    from it by ikdp.distill, in a folder of their own; the teacher's file then holds the student too (ikdp.ship), as
+    a shipped model does."""
     import shutil
 
     from ikdp.distill import DistillConfig, distill
+    from ikdp.ship import ship
 
     folder = tmp_path_factory.mktemp("teacher_and_student")
     teacher = shutil.copy(tiny_chain_checkpoint, folder / "panda_teacher.pt")
@@ -68,7 +70,9 @@ def tiny_chain_student(tiny_chain_checkpoint, tmp_path_factory):
         teacher=str(teacher), student_steps=2, teacher_steps=4, steps=3, batch=8, save_every=100, eval_targets=4,
         output=str(folder / "panda_student.pt"), log_dir=str(folder.parent / "student_tb"), threads=1,
     )  # fmt: skip
-    return teacher, distill(config), folder
+    student = distill(config)
+    ship(teacher, teacher, student)
+    return teacher, student, folder
 
 
 @pytest.fixture(scope="module")

@@ -78,7 +78,7 @@ def refusal(module: str, *arguments: str) -> str:
 def test_the_seeded_fidelity_rows_are_read_or_refused_in_one_line():
     from benchmarks.fidelity_seeds import parse_row
 
-    assert parse_row("ikdp_n4_relaxed_mlp@ddpm") == ("ikdp_n4_relaxed_mlp", "ddpm", None, None)
+    assert parse_row("ikdp_n4_relaxed@ddpm") == ("ikdp_n4_relaxed", "ddpm", None, None)
     assert parse_row("student.pt@ddim:4:quadratic") == ("student.pt", "ddim", 4, "quadratic")
     stderr = refusal("fidelity_seeds", "--rows", "m@ddim:four")
     assert "row 'm@ddim:four': expected checkpoint@sampler[:steps[:spacing]]" in stderr

@@ -230,7 +230,7 @@ def test_two_tabs_see_one_scene_and_closing_one_mid_animation_breaks_nothing(vie
 
 
 def test_opening_a_longer_arm_fits_the_open_tabs_view_to_its_reach(viewer, tiny_checkpoint):
-    """Issue 10, defect 8: an N=8 checkpoint opened from the panel used to keep the N=4 camera."""
+    """An N=8 checkpoint opened from the panel used to keep the N=4 camera."""
     from ikdp.shipped import list_shipped
     from ikdp_viz.app import camera_fit
 

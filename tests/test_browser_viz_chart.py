@@ -1,4 +1,4 @@
-"""The readouts' chart in a real browser (issue 19): hovering it shows no stray dot and no "now: NaN", the legend
+"""The readouts' chart in a real browser: hovering it shows no stray dot and no "now: NaN", the legend
 is one line, and the top decade's tick label has room above the plot area."""
 
 from __future__ import annotations

@@ -107,7 +107,7 @@ def sphere_pixels(page, app, sphere) -> float:
 
 
 def test_a_dropped_obstacle_is_seen_in_front_of_the_panda(browser):
-    """Finding 4 (issue 25): the Panda's dropped sphere sat inside the robot shown and could not be seen. Hiding
+    """The Panda's dropped sphere sat inside the robot shown and could not be seen. Hiding
     it now changes a visible part of the page (dropped where it was, on the middle joint, almost none)."""
     solver = shipped_solver_or_skip("ikdp_panda")
     with running_app(solver, animation_seconds=0.0) as app:

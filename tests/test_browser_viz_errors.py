@@ -1,7 +1,7 @@
 """The shipped model in a real browser, on targets that broke the page before: no page error, no console error.
 
-Issue 10, defect 1: on `ikdp_n4`, target (-0.010, +1.200), K = 16, seed 0, DDPM, the
-tip-error chart threw `RangeError: Invalid array length` in the page. The sweep adds
+On `ikdp_n4`, target (-0.010, +1.200), K = 16, seed 0, DDPM, the
+tip-error chart once threw `RangeError: Invalid array length` in the page. The sweep adds
 a target near the base, one on the boundary and one out of reach. Every page error
 and every console message of type "error" is collected; none may appear.
 """
@@ -25,7 +25,7 @@ from ikdp.shipped import DEFAULT_MODEL
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-ISSUE_TARGET = (-0.010, 1.200)
+CHART_CRASH_TARGET = (-0.010, 1.200)
 
 
 @pytest.fixture(scope="module")
@@ -33,10 +33,10 @@ def shipped_solver():
     return shipped_solver_or_skip(DEFAULT_MODEL)
 
 
-def test_the_issue_target_and_a_sweep_raise_no_error_in_the_page(browser, shipped_solver):
+def test_the_target_that_crashed_the_chart_and_a_sweep_raise_no_error_in_the_page(browser, shipped_solver):
     outer = shipped_solver.reach[1]
     sweep = {
-        "issue": ISSUE_TARGET,
+        "chart crash": CHART_CRASH_TARGET,
         "near the base": (0.02, 0.01),
         "on the boundary": (outer * np.cos(0.7), outer * np.sin(0.7)),
         "unreachable": (5 * outer, -3 * outer),
@@ -66,7 +66,7 @@ def test_comparing_two_samplers_and_the_readable_settings_raise_no_error_in_the_
             lambda: setattr(app.panel.learn.compare, "value", "dpmpp2m"),
             lambda: setattr(app.panel.learn.compare, "value", "off"),
         )
-        app.move_target(ISSUE_TARGET)
+        app.move_target(CHART_CRASH_TARGET)
         for number, step in enumerate(steps):
             step()
             settle(app)

@@ -1,4 +1,4 @@
-"""Export GIF + PNG in a real browser (issue 19): both files land in the downloads of the tab that clicked,
+"""Export GIF + PNG in a real browser: both files land in the downloads of the tab that clicked,
 with progress while the GIF renders and one notification per export, never a pile of links."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The joint-space view's two dropdowns in a real browser (issue 19): choosing for x the joint y shows moves y
+"""The joint-space view's two dropdowns in a real browser: choosing for x the joint y shows moves y
 on, in the page, and the square's axis labels say the pair drawn."""
 
 from __future__ import annotations

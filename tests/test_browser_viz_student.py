@@ -1,4 +1,4 @@
-"""The teacher's full denoising one click away in a real browser (issue 27, deliver 3): the button sits in the
+"""The teacher's full denoising one click away in a real browser: the button sits in the
 Denoising folder, open from the start, and one click there switches the robot from its student to the teacher."""
 
 from __future__ import annotations

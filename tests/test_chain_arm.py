@@ -317,7 +317,7 @@ def test_a_recorded_urdf_copy_that_exists_here_yields_to_the_installed_one(panda
     assert arm.recorded_urdf_path == str(bare)
 
 
-@pytest.mark.parametrize("name", ["ikdp_panda", "ikdp_panda_gpu"])  # both trained on GPU machines, from copies
+@pytest.mark.parametrize("name", ["ikdp_panda", "ikdp_panda_fast"])  # one trained on a GPU machine, from a copy
 def test_the_shipped_panda_model_names_this_machines_urdf(name):
     import ikdp
 

@@ -92,7 +92,7 @@ def test_the_sampling_loop_hands_the_chain_denoiser_one_condition_per_target(pan
 
 @pytest.fixture(scope="module")
 def panda_file():
-    return "ikdp_panda_cpu"  # a shipped robot model, 256 wide: small enough for a fast test
+    return "ikdp_panda_fast"  # a shipped Panda model, 256 wide: small enough for a fast test
 
 
 def test_int8_weights_sample_close_to_the_float_weights(panda, panda_file):
@@ -117,9 +117,11 @@ def test_an_int8_pose_does_not_depend_on_the_targets_solved_beside_it(panda, pan
     noise = torch.randn(32, 4, quantized.noise_dim, generator=torch.Generator().manual_seed(6))
     options = {"num_samples": 4, "sampler": "ddim", "steps": 2}
     together = quantized.solve(goals, initial_noise=noise, **options).raw_angles
-    for index in (0, 17, 31):  # alone, each gets the very pose it got among the 32 (was 0.2 rad apart, median)
+    for index in (0, 17, 31):  # alone, each gets the pose it got among the 32 (batch-scaled inputs: 0.2 rad apart)
         alone = quantized.solve(goals[index : index + 1], initial_noise=noise[index : index + 1], **options)
-        assert torch.equal(alone.raw_angles[0], together[index])
+        # Float32 products may take another kernel for another batch size (1e-6 rad apart on an Intel Xeon, equal
+        # on an AMD EPYC), so the pose is held to float rounding, not to the bit.
+        torch.testing.assert_close(alone.raw_angles[0], together[index], atol=1e-4, rtol=0)
 
 
 def test_int8_is_refused_in_one_line_where_it_cannot_run(panda_file):

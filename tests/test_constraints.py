@@ -368,7 +368,7 @@ def test_partial_targets_are_reached_after_refinement(tiny_chain_checkpoint, con
     arm = solver.arm
     targets = arm.end_effector(arm.random_poses(3, generator=seeded(4)))
     given = targets[:, :3] if constraint.name == "position_only" else targets
-    # a tiny model's seeds are poor: the refinement does the work here (the shipped model: docs/CONSTRAINTS.md);
+    # a tiny model's seeds are poor: the refinement does the work here (the shipped model: docs/benchmarks.md);
     # the evenly spaced grid these seeds were chosen on (a robot's default became the packed one)
     out = solver.solve(given, num_samples=16, sampler="dpmpp2m", steps=5, spacing="uniform", refine_steps=40,
                        generator=seeded(), constraints=[constraint])  # fmt: skip
@@ -402,6 +402,25 @@ def test_tracking_follows_a_path_on_one_continuous_solution(tiny_checkpoint):
     assert result.largest_jump < 0.2  # 0.065 rad of arc per target: no branch switch
     assert not bool(result.branch_switches.any()) and result.switch_indices == []
     assert float(result.position_error.max()) < solver.arm.position_tolerance == 1e-3 * solver.arm.span
+
+
+def test_one_tracking_step_is_what_track_keeps_and_names_the_sample_kept(tiny_checkpoint):
+    from ikdp.tracking import track_step
+
+    solver = ikdp.load(tiny_checkpoint)
+    start = damped_least_squares(solver.arm, torch.tensor([[0.3, -0.4, 0.2]]), torch.tensor([[1.8, 0.0]]), steps=30)[0]
+    target = torch.tensor([1.78, 0.1])
+    options = dict(num_samples=8, sampler="ddim", steps=5, refine_steps=10)
+    tracked = solver.track(target[None], start, generator=seeded(), **options)
+    step = track_step(solver, target, start, generator=seeded(), return_trajectory=True, **options)
+    assert torch.equal(step.kept.angles, tracked.angles) and bool(step.kept.reached[0])
+    assert step.solve.trajectory is not None and step.solve.angles.shape == (1, 8, 3)  # its solve, as asked
+    if step.sample is None:  # the previous pose moved onto the target: no sample is it
+        assert not (step.solve.angles[0] == step.kept.angles[0]).all(dim=-1).any()
+    else:
+        assert torch.equal(step.solve.angles[0, step.sample], step.kept.angles[0])
+    far = track_step(solver, target, start, warm_start=False, hold_step=None, generator=seeded(), **options)
+    assert far.sample is not None  # without the warm start and the hold, track keeps one of the K samples
 
 
 def test_tracking_reached_means_the_arms_tolerance_1_mm_and_1_degree_on_a_robot(tiny_chain_checkpoint):

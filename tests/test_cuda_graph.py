@@ -76,7 +76,7 @@ def reachable_targets(solver, count, seed):
 
 @pytest.mark.parametrize(
     "name, sampler, steps, restart_steps",
-    [("ikdp_panda_1step", "ddim", 1, 0), ("ikdp_panda_1step", "ddim", 1, 5), ("ikdp_n4", "dpmpp2m", 3, 5)],
+    [("ikdp_panda_fast", "ddim", 1, 0), ("ikdp_panda_fast", "ddim", 1, 5), ("ikdp_n4", "dpmpp2m", 3, 5)],
 )
 def test_the_captured_solve_asks_the_device_nothing(name, sampler, steps, restart_steps):
     """What `capture` records must not sync: run on a CPU under a recorder, after a warm-up as capture does."""
@@ -118,7 +118,7 @@ def test_the_captured_solve_of_a_newly_trained_robot_copies_nothing_from_the_hos
 
 def test_the_captured_solve_gives_solves_poses():
     """Same seed, same poses as `solve` on this CPU (no restarts: theirs are drawn differently)."""
-    solver = ikdp.load("ikdp_panda_1step")
+    solver = ikdp.load("ikdp_panda_fast")
     targets = reachable_targets(solver, 30, 1)
     sampler = make_sampler("ddim", solver.model.schedule, 1, "quadratic")
     generator = torch.Generator().manual_seed(4)
@@ -214,7 +214,10 @@ def test_capture_names_a_bad_option_before_anything_else(batch, options, message
 
 
 @needs_cuda
-@pytest.mark.parametrize("name, sampler, steps", [("ikdp_panda_1step", "ddim", 1), ("ikdp_n4", "dpmpp2m", 10)])
+@pytest.mark.parametrize(
+    "name, sampler, steps",
+    [("ikdp_panda_fast", "ddim", 1), ("ikdp_n4", "dpmpp2m", 10), ("ikdp_panda", "student", None)],
+)
 def test_the_captured_solve_replays_the_eager_solve(name, sampler, steps):
     solver = ikdp.load(name, device="cuda")
     targets = reachable_targets(solver, 64, 6).cuda()

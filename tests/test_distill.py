@@ -262,7 +262,7 @@ def test_init_refuses_a_student_of_another_network_under_the_teachers_name(
 
 
 def test_a_robot_student_with_the_dls_skip_starts_from_the_teacher_or_a_student_without_it(tmp_path):
-    teacher = ikdp.load("ikdp_panda_cpu")  # a shipped robot model without the skip
+    teacher = ikdp.load("ikdp_z1")  # a shipped robot model without the skip
     payload = read_checkpoint(teacher.metadata["path"])
     student = student_network(payload, teacher.metadata["path"], dls_skip=True)
     assert student.config.denoiser.dls_skip and not teacher.model.config.denoiser.dls_skip
@@ -272,8 +272,8 @@ def test_a_robot_student_with_the_dls_skip_starts_from_the_teacher_or_a_student_
     assert all(not weights[name].any() for name in SKIP_WEIGHTS)  # the gain at its schedule's start
 
     robot = dict(student_steps=2, teacher_steps=2, steps=1, batch=8, eval_targets=0)
-    plain = distill(small_config(tmp_path / "plain", "ikdp_panda_cpu", **robot))
-    skip = distill(small_config(tmp_path / "skip", "ikdp_panda_cpu", **robot, init=str(plain), dls_skip=True))
+    plain = distill(small_config(tmp_path / "plain", "ikdp_z1", **robot))
+    skip = distill(small_config(tmp_path / "skip", "ikdp_z1", **robot, init=str(plain), dls_skip=True))
     solver = ikdp.load(skip)
     assert solver.model.config.denoiser.dls_skip
     started = read_checkpoint(plain)["state_dict"]
@@ -281,7 +281,7 @@ def test_a_robot_student_with_the_dls_skip_starts_from_the_teacher_or_a_student_
     assert set(moved) - set(started) == SKIP_WEIGHTS  # --init gave the rest: one step moved them only a little
     assert max(float((moved[name] - value).abs().max()) for name, value in started.items()) < 0.01
     with pytest.raises(ValueError, match="has another network than its teacher"):  # a skip student as a plain start
-        distill(small_config(tmp_path / "back", "ikdp_panda_cpu", **robot, init=str(skip)))
+        distill(small_config(tmp_path / "back", "ikdp_z1", **robot, init=str(skip)))
 
 
 def test_a_reference_pool_is_kept_for_the_next_run_of_the_same_teacher_and_redrawn_when_damaged(
@@ -400,9 +400,9 @@ def test_a_pool_kept_before_the_reference_option_reads_as_the_teachers(tiny_chec
             "the posterior's samples reach their targets already",
         ),
         (
-            ["--teacher", "ikdp_panda_cpu", "--reference", "posterior", "--distribution-weight", "1",
+            ["--teacher", "ikdp_z1", "--reference", "posterior", "--distribution-weight", "1",
              "--noises-per-target", "2", "--reference-pool", "8"],
-            "ikdp_panda_cpu's targets have 7: use --reference teacher",
+            "ikdp_z1's targets have 7: use --reference teacher",
         ),
     ],
 )  # fmt: skip

@@ -17,7 +17,7 @@ from ikdp.train_steps import EagerSteps, GraphedSteps
 
 needs_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA graphs need a CUDA device")
 
-# the one-step recipe's terms (docs/BENCHMARKS.md): no teacher run in a step, the reference from a pool
+# the one-step recipe's terms (docs/training.md): no teacher run in a step, the reference from a pool
 POOL = dict(
     noises_per_target=4,
     match_weight=0.0,

@@ -71,7 +71,7 @@ def previous_denoise(denoiser, x, target, film):
     return denoiser.representation.turn(x, denoiser.output(torch.nn.functional.silu(h)), unit=unit)
 
 
-@pytest.mark.parametrize("name", ["ikdp_n4", "ikdp_n4_relaxed"])
+@pytest.mark.parametrize("name", ["ikdp_n4", "ikdp_n8"])
 def test_shipped_models_denoise_as_before(name):
     model = ikdp.load(name).model
     arm = model.arm

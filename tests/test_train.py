@@ -247,7 +247,7 @@ def test_interrupted_training_leaves_a_loadable_checkpoint_even_started_with_sig
         str(tmp_path / "tb"),
     ]
     # as `nohup ... &` or a CI runner starts it: SIGINT ignored, so Python installs no Ctrl-C handler of its own
-    # (issue 19: the trainer then ran on through Ctrl-C); main() installs one
+    # (without it the trainer ran on through Ctrl-C); main() installs one
     ignore_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)
     process = subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ignore_sigint

@@ -91,7 +91,7 @@ def test_scrubbing_the_timestep_slider_shows_that_state(app):
     assert f"**Step** {state} of {view.num_states - 1} (t = 7)" in app.panel.readout_text.content
     t, median, chosen, marker = app.panel.plot.data
     assert np.isfinite(marker).sum() == 1 and t[np.isfinite(marker)][0] == 7
-    # the chart runs t = 0 .. T left to right, as the slider does (issue 10, defect 6)
+    # the chart runs t = 0 .. T left to right, as the slider does
     x_scale = app.panel.plot.scales["x"]
     assert x_scale.get("dir", 1) == 1 and tuple(x_scale["range"]) == (0.0, app.solver.timesteps)
     assert app.panel.timestep.min == 0 and app.panel.timestep.max == app.solver.timesteps
@@ -260,9 +260,10 @@ def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_pa
     assert gif.suffix == ".gif" and 2 < len(frames) <= 41 and frames[0].shape[:2] == (480, 480)
     assert not np.array_equal(frames[0], frames[-1])  # the arms move from noise to the final pose
     image = read_png(png.read_bytes())
-    assert image.shape == (800, 800, 3) and (image.min(axis=-1) < 100).any()  # dark final poses drawn
+    assert image.shape == (840, 800, 3) and (image.min(axis=-1) < 100).any()  # dark final poses drawn
+    image = image[40:]  # under the title's band: the picture, 800 square
     red = (image[..., 0] > 180) & (image[..., 1] < 80) & (image[..., 2] < 80)
-    red[560:, :420] = False  # the legend's box (bottom left) has a red cross of its own
+    red[520:, :420] = False  # the legend's box (bottom left) has a red cross of its own
     rows, cols = np.nonzero(red)
     reach = float(np.sum(view.lengths))
     centre = (np.array([cols.mean(), rows.mean()]) - 400) / 400 * 1.05 * reach * np.array([1, -1])
@@ -270,8 +271,46 @@ def test_export_writes_the_denoising_as_a_gif_and_the_trail_as_a_png(app, tmp_pa
     assert f"seed{app.solved.request.seed}" in gif.name and png.name.endswith("_trail.png")
 
 
+def test_every_legend_entry_names_something_drawn_and_the_export_lists_what_it_draws(app, tmp_path, monkeypatch):
+    """The legend showed a ramp of tips where one tip is drawn, had no entry for the compared sampler's arms, and the
+    exported PNG's legend left out the grey final arms under a title that ran over the reach circle."""
+    from viz_helpers import read_png
+
+    from ikdp_viz import export
+
+    legend = app.writer.frame.legend
+    tips = [entry for entry in legend if "tip" in entry.text]
+    assert len(tips) == 1 and tips[0].swatch.shape == "dot"  # one dot drawn, in its shade at the step shown
+    assert tips[0].swatch.faint is not None
+    assert int(app.tips.batched_scales.sum()) == 1  # ... as the scene draws: the highlighted sample's tip alone
+    assert not any("same x_T" in entry.text for entry in legend)
+    app.panel.learn.compare.value = "ddim"
+    settle(app)
+    assert any("ddim from the same x_T" in entry.text for entry in app.writer.frame.legend)
+    assert "ddim from the same x_T" in app.panel.learn.legend.content
+    app.panel.learn.compare.value = "off"
+    settle(app)
+    pictures = []
+    monkeypatch.setattr(export, "write_gif", lambda picture, path, **_: pictures.append(picture) or path)
+    _, png = app.downloads.export(tmp_path)
+    texts = [entry.text for entry in pictures[0].legend]
+    drawn = [entry.text for entry in app.writer.frame.legend if entry.flat]
+    assert texts == [*drawn, "target"] and any("other samples" in text for text in texts)  # the grey final arms
+    assert not any("tip" in text for text in texts)  # the PNG draws no tips
+    image = read_png(png.read_bytes()).astype(int)[:100]  # the top: the title and the top of the reach circle
+    text = image.max(axis=-1) < 100
+    near_text = np.zeros_like(text)  # a letter's grey edges are not the circle
+    for shift in range(-3, 4):
+        near_text |= np.roll(text, shift, axis=0) | np.roll(text, shift, axis=1)
+    circle = (np.ptp(image, axis=-1) <= 8) & (np.abs(image[..., 0] - 150) <= 25) & ~near_text
+    title_rows = np.flatnonzero(text.any(axis=1))
+    circle_rows = np.flatnonzero(circle[:, 380:420].any(axis=1))  # the circle's top, over the base
+    assert len(title_rows) and len(circle_rows)
+    assert circle_rows.min() > title_rows.max(), (title_rows, circle_rows)  # the title above the circle, clear of it
+
+
 def test_the_gif_keeps_the_viewers_clock_and_colours(app, tmp_path):
-    """Finding 12 (issue 25): the GIF gave every step the same time (half of it pure noise) and drew the other
+    """The GIF gave every step the same time (half of it pure noise) and drew the other
     samples black at t = 0; it follows the viewer's noise-level clock and its light grey now."""
     from PIL import Image
 
@@ -513,7 +552,7 @@ def test_list_checkpoints_finds_every_pt_file_and_the_one_given(tmp_path):
 def test_a_fuzz_of_moves_sampler_changes_and_reloads_from_several_threads_ends_on_the_newest_target(
     app, tiny_checkpoint, two_link_checkpoint, capfd
 ):
-    """Issue 10's threading design: no exception anywhere, solves drawn in request order, the newest drawn last."""
+    """The threading design: no exception anywhere, solves drawn in request order, the newest drawn last."""
     from ikdp.samplers import sampler_names
 
     app.panel.duration.value = 0.2  # animations run (and get interrupted) throughout
@@ -596,7 +635,7 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
     legend = app.panel.learn.legend.content
     for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
         assert css(color) in legend  # each colour of the scene has its swatch
-    for words in ("trail of the highlighted sample", "x̂0", "refined", "prior", "tips", "target"):
+    for words in ("trail of the highlighted sample", "x̂0", "refined", "prior", "tip", "target"):
         assert words in legend
     app.panel.learn.trail_of.value = "all samples"
     assert "trails of all samples" in app.panel.learn.legend.content
@@ -606,7 +645,7 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
 
 
 def test_the_page_opens_on_pure_noise_and_plays_when_a_tab_connects(solver):
-    """Finding 11 (issue 25): the command line's viewer played the first denoising before anyone connected, so a
+    """The command line's viewer played the first denoising before anyone connected, so a
     tab opened on the finished pose; and viser's software-WebGL toast covered the scene."""
     from types import SimpleNamespace
 
@@ -626,3 +665,34 @@ def test_the_page_opens_on_pure_noise_and_plays_when_a_tab_connects(solver):
         app.writer.post(TabOpened(tab))  # a second tab: the solve was seen, nothing replays
         app.writer.flush()
         assert not app.playing
+
+
+def test_a_new_tab_plays_the_denoising_once_its_page_has_drawn_a_frame(solver):
+    """viser calls a connection on the page's first camera message, before the page has drawn: played from there, a
+    CPU's page showed its first frame most of the way through the denoising."""
+    import time
+    from types import SimpleNamespace
+
+    drawn, asked = threading.Event(), threading.Event()
+
+    def get_render(height, width, **options):  # the page answers once it has drawn the scene
+        asked.set()
+        assert drawn.wait(30)
+        return np.zeros((height, width, 3), np.uint8)
+
+    tab = SimpleNamespace(_websock_connection=SimpleNamespace(queue_message=lambda message: None),
+                          get_render=get_render)  # fmt: skip
+    with running_app(solver, animation_seconds=1.0, wait_for_tab=True) as app:
+        assert app.wait_until_still(60) and app.state == 0 and not app.playing  # pure noise, waiting
+        connecting = threading.Thread(target=app._on_connect, args=(tab,))
+        connecting.start()
+        try:
+            assert asked.wait(30)
+            time.sleep(0.3)
+            app.writer.flush()
+            assert not app.playing and app.state == 0  # the page has not drawn yet: nothing plays unseen
+        finally:
+            drawn.set()
+            connecting.join(30)
+        app.writer.flush()
+        assert app.playing and app.state == 0  # from t = T, now that the page draws

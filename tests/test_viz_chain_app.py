@@ -107,7 +107,7 @@ def test_refine_shows_the_polished_error_in_millimetres_and_degrees(app):
     view = app.solved.view
     raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1])) + 1
     named = f"by raw hand error at t = 0 the best is sample {raw_best}"
-    assert (named in text) == (raw_best != int(best.group(1)))  # the raw ranking named when it differs (issue 19)
+    assert (named in text) == (raw_best != int(best.group(1)))  # the raw ranking named when it differs
     app.show_state(0)
     assert not app.writer.view.refined_lines.visible  # the polish belongs to the final pose
 
@@ -209,7 +209,7 @@ def test_the_followed_robot_stands_out_and_the_others_recede(app):
 
 
 def test_a_robot_exports_its_denoising_as_a_gif_and_a_labelled_png(app, tmp_path):
-    """Deliver 3 (issue 25): Export was disabled for robots; the skeletons are drawn as the viewer's camera sees
+    """A robot exports its denoising as the planar arm does: the skeletons are drawn as the viewer's camera sees
     them, the followed one in the viewer's blue."""
     import imageio.v2 as imageio
     from viz_helpers import read_png
@@ -226,7 +226,7 @@ def test_a_robot_exports_its_denoising_as_a_gif_and_a_labelled_png(app, tmp_path
 
 
 def test_the_robots_meshes_skeletons_and_hand_are_drawn_from_the_same_state(app):
-    """Finding 9 (issue 25): at the last state the meshes and hand showed the returned (refined) pose while the
+    """Once, at the last state the meshes and hand showed the returned (refined) pose while the
     skeletons showed the sampler's last state: stray skeleton lines."""
     from ikdp_viz.chain_scene import gizmo_pose
 
@@ -244,13 +244,14 @@ def test_the_robots_meshes_skeletons_and_hand_are_drawn_from_the_same_state(app)
 
 
 def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
-    """Deliver 6 (issue 25): a robot's drag answered in 0.4-1.0 s with DDPM; a fast DPM-Solver++ solve is drawn
+    """A robot's drag answered in 0.4-1.0 s with DDPM alone, so a fast DPM-Solver++ solve is drawn
     first, the readout naming it, and the DDPM solve replaces it."""
     from viz_helpers import shipped_solver_or_skip
 
     from ikdp_viz.messages import ShowSolve
 
-    with running_app(shipped_solver_or_skip("ikdp_panda"), animation_seconds=0.0) as app:
+    # a robot model without a student (one with a student previews with it: tests/test_viz_student.py)
+    with running_app(shipped_solver_or_skip("ikdp_z1"), animation_seconds=0.0) as app:
         settle(app)
         shown = solves_shown_by_a_robot_drag(app)
         moved = app.target
@@ -267,8 +268,8 @@ def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
 
 
 def test_a_robot_compares_two_samplers_from_the_same_noise(app):
-    """Deliver 3 (issue 25): "compare with" drew planar arms only; a robot gets the second sampler's skeletons
-    beside it, the chart its curve, and one camera over both."""
+    """A robot gets the second sampler's skeletons beside it, each side's title just over its own final poses,
+    the chart its curve, and one camera over both."""
     from ikdp_viz.camera import camera_fit_3d
 
     alone = np.asarray(app.server.initial_camera.position).copy()
@@ -279,6 +280,12 @@ def test_a_robot_compares_two_samplers_from_the_same_noise(app):
     assert compare is not None and compare.num_samples == view.num_samples
     nodes = app.writer.stage.compare
     assert nodes.shown and len(nodes.nodes["skeletons"].points) == view.num_samples * compare.num_joints
+    reach = float(app.solver.arm.reach[1])
+    for title, points in (("main_title", view.points[-1]), ("title", compare.points[-1] + nodes.shift)):
+        position, joints = np.asarray(nodes.nodes[title].position), points.reshape(-1, 3)
+        low, high = joints.min(axis=0), joints.max(axis=0)
+        assert np.all((low[:2] <= position[:2]) & (position[:2] <= high[:2])), (title, position, low, high)
+        assert 0.0 < position[2] - high[2] <= 0.15 * reach, (title, position[2], high[2], reach)  # just above them
     assert len(app.panel.plot.data) == 5  # t, median, highlighted, now, and the compared sampler
     both = np.asarray(app.server.initial_camera.position)
     assert not np.allclose(both, alone)  # framed over both

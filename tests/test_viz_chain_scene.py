@@ -152,7 +152,7 @@ def test_the_own_hull_is_scipys_hull_and_the_ghosts_need_no_scipy(monkeypatch):
     square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 0]])
     assert sorted(np.unique(convex_hull(square))) == [0, 1, 2, 3] and len(convex_hull(square)) == 4  # both sides
     assert len(convex_hull(np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2.0]]))) == 0  # a line has no faces
-    monkeypatch.setitem(sys.modules, "scipy", None)  # no user extra installs scipy (issue 19)
+    monkeypatch.setitem(sys.modules, "scipy", None)  # no user extra installs scipy: the light meshes must not need it
     monkeypatch.setitem(sys.modules, "scipy.spatial", None)
     for mesh in robot_meshes(load_robot("panda")):
         vertices, faces = light_mesh(mesh.vertices)

@@ -110,7 +110,7 @@ def test_default_model_a_taken_port_and_ctrl_c_even_started_with_sigint_ignored(
             text=True,
             env=with_repo_on_path(),
             # as `nohup ... &` or a CI runner starts it: SIGINT ignored, so Python installs no Ctrl-C handler of
-            # its own (issue 19: the viewer then ran on through Ctrl-C); main() installs one
+            # its own (without it the viewer ran on through Ctrl-C); main() installs one
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
         )
         try:
@@ -198,7 +198,8 @@ def test_without_sampler_flags_planar_and_robot_models_open_on_ddpm_the_setting_
 
 
 def test_the_readme_tells_a_cpu_only_machine_where_torch_comes_from():
-    """Finding 13 (issue 25): the pin alone lets pip fetch a CUDA build on Linux; PyTorch's CPU wheel index does not."""
+    """The pin alone lets pip fetch a multi-GB CUDA build on Linux; PyTorch's CPU wheel index beside it does not
+    (pip takes 2.13.0+cpu), and the same line serves macOS and Windows."""
     readme = (REPO / "README.md").read_text(encoding="utf-8")
-    assert "pip install torch --index-url https://download.pytorch.org/whl/cpu" in readme
+    assert 'pip install "torch==2.13.0" --extra-index-url https://download.pytorch.org/whl/cpu' in readme
     assert "`torch==2.13.0` is the version CI installs" in readme

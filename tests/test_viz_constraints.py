@@ -20,9 +20,7 @@ from ikdp_viz.constraint_scene import (
     VIOLATES_OTHERS,
     build_constraints,
     first_holding_state,
-    follow_choice,
     holds,
-    is_branch_switch,
     overlay_segments,
     sample_tints,
 )
@@ -49,41 +47,6 @@ def test_every_sample_is_tinted_by_its_own_violation_the_highlighted_one_in_full
     assert (tints[0, 2] == VIOLATES).all() and (tints[1, 2] == HOLDS).all()
 
 
-def test_follow_keeps_the_nearest_sample_that_reaches():
-    arm = ikdp.PlanarArm([1.0, 1.0])
-    finals = np.array([[0.0, 1.0], [3.0, -1.0], [0.05, 1.0]])
-    errors = np.array([1e-6, 1e-6, 0.5])  # the third is nearest but misses
-    choice, jump = follow_choice(arm, finals, np.array([3.1, -1.0]), errors)
-    assert choice == 1 and jump == pytest.approx(0.1)
-    assert follow_choice(arm, finals, None, errors) == (0, 0.0)
-
-
-def test_follow_flags_a_change_of_branch_by_the_libraries_rule():
-    arm = ikdp.PlanarArm([1.0, 1.0])
-    previous = np.array([0.3, 1.2])
-    moved = np.array([0.301, 1.2])  # a step of a millimetre along the path
-    target = arm.end_effector(torch.tensor(moved, dtype=torch.float64)).numpy()
-    flipped = moved[::-1].copy()  # the other elbow: the same tip (headings' order does not change their sum)
-    jump_along, jump_flip = 0.001, 0.899
-    assert not is_branch_switch(arm, previous, target, moved, jump_along)
-    assert is_branch_switch(arm, previous, target, flipped, jump_flip)
-
-
-def test_follow_on_a_robot_counts_a_turned_hand_as_a_miss():
-    from types import SimpleNamespace
-
-    from ikdp_viz.chain_scene import ChainView
-
-    arm = ikdp.load_robot("panda")
-    finals = np.zeros((2, 7))
-    finals[1, 6] = 0.5  # the second sample is 0.5 rad from the first in joint 7 only
-    previous = finals[0] + 0.01  # the first is nearer the last pose
-    # both hands on the target's position; the first is turned 10 degrees off it
-    view = SimpleNamespace(final_position_error=np.array([1e-4, 1e-4]), final_rotation_error=np.radians([10.0, 0.05]))
-    assert follow_choice(arm, finals, previous, view.final_position_error)[0] == 0  # by position alone: the turned one
-    assert follow_choice(arm, finals, previous, ChainView.final_error.fget(view))[0] == 1
-
-
 @pytest.fixture
 def app(tiny_checkpoint):
     with running_app(ikdp.load(tiny_checkpoint), solve_now=False, animation_seconds=0.0) as app:
@@ -94,7 +57,7 @@ def app(tiny_checkpoint):
 
 def test_a_locked_joint_holds_in_every_returned_pose_and_is_reported(app):
     controls = app.constraint_controls
-    controls.lock_values[1].value = 45.0  # degrees (finding 5)
+    controls.lock_values[1].value = 45.0  # degrees
     controls.lock_boxes[1].value = True  # asks for a solve
     settle(app)
     assert np.array_equal(app.solved.final_angles[:, 1], np.full(K, np.float32(np.radians(45.0))))
@@ -144,15 +107,14 @@ def test_an_obstacle_dropped_and_dragged_bends_the_solve(app):
     assert app.solved.request.constraints == ()
 
 
-def test_follow_mode_pulls_toward_the_last_pose_and_reads_the_largest_jump(app):
+def test_follow_mode_steps_from_the_last_pose_and_reads_the_largest_jump(app):
     controls = app.constraint_controls
     controls.follow.value = True
     settle(app)
     for step in range(4):
         drag_gizmo(app, 1.2 + 0.03 * step, 1.0, phase="update")
         settle(app)
-        near = [c for c in app.solved.request.constraints if c.name == "near_pose"]
-        assert near, "follow mode asks each solve to stay near the last pose"
+        assert app.solved.followed is not None, "follow mode solves each target by tracking's step, from the last pose"
     assert app.panel.highlight.value != "best"  # the kept sample is the highlighted one
     assert "largest so far" in controls.readout.content
     assert controls.largest_jump >= 0.0
@@ -164,7 +126,7 @@ def test_a_robot_gets_the_same_folder_with_its_joint_names_and_spheres(tiny_chai
         settle(app)
         controls = app.constraint_controls
         assert controls.lock_boxes[6].label == "lock panda_joint7"
-        controls.lock_values[6].value = 57.3  # degrees (finding 5)
+        controls.lock_values[6].value = 57.3  # degrees
         controls.lock_boxes[6].value = True
         controls.add_obstacle(position=(0.3, 0.0, 0.4), radius=0.08)
         settle(app)
@@ -224,7 +186,7 @@ def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_
         controls.follow.value = True
         settle(app)
         names = sorted(c.name for c in app.solved.request.constraints)
-        assert names == ["free_axis", "locked_joints", "near_pose"]
+        assert names == ["free_axis", "locked_joints"] and app.solved.followed is not None  # tracking's own pull
         assert np.all(app.solved.final_angles[:, 6] == np.float32(np.radians(controls.lock_values[6].value)))
         controls.target_kind.value = "full pose"
         settle(app)
@@ -233,8 +195,8 @@ def test_a_pose_model_solves_a_partial_target_and_shows_what_it_asks(tiny_chain_
 
 @pytest.mark.parametrize("mode", ["follow", "stay_near"])
 def test_a_pulled_solve_still_reaches_the_target_or_says_it_was_dropped(mode):
-    """Finding 1 (issue 25): typed targets 0.1 apart drifted the followed arm 0.15 bone lengths short while the
-    readout said every constraint held; the pull that misses is dropped (as ikdp.track's candidates are) and said."""
+    """Typed targets 0.1 apart drifted a pulled arm 0.15 bone lengths short while the readout said every constraint
+    held: staying near, the pull that misses is dropped and said; following, tracking's step reaches each target."""
     from viz_helpers import shipped_solver_or_skip
 
     from ikdp_viz.solving import REACH_FRACTION
@@ -254,11 +216,14 @@ def test_a_pulled_solve_still_reaches_the_target_or_says_it_was_dropped(mode):
             dropped += app.solved.pull_missed is not None
             if app.solved.pull_missed is not None:
                 assert "without the pull" in app.constraint_controls.readout.content
-        assert dropped > 0  # the pull did miss on this path (0.15 away by its end), so the rule was exercised
+        if mode == "stay_near":
+            assert dropped > 0  # the pull did miss on this path (0.15 away by its end), so the rule was exercised
+        else:
+            assert dropped == 0  # tracking's step keeps the last pose moved onto the target, no pull to drop
 
 
 def test_lock_fields_are_degrees_within_the_joints_limits_and_any_angle_wraps():
-    """Finding 5 (issue 25): "θ1 value" took 90 and used 90 rad; a robot's lock fields were radians beside targets
+    """The "θ1 value" took 90 and used 90 rad; a robot's lock fields were radians beside targets
     in degrees, and a value past a limit was used as typed."""
     from ikdp_viz.lock_fields import lock_fields
 
@@ -287,7 +252,7 @@ def test_a_lock_past_its_limit_is_clamped_and_said(tiny_chain_checkpoint):
 
 
 def test_best_is_a_sample_that_meets_the_constraints_and_none_meeting_is_explained(app):
-    """Finding 4 (issue 25): "best" highlighted a sample through the obstacle while others cleared it, and 0 of 16
+    """Once "best" highlighted a sample through the obstacle while others cleared it, and 0 of 16
     met with no hint why."""
     from ikdp_viz.frame import best_sample
 
@@ -306,7 +271,7 @@ def test_best_is_a_sample_that_meets_the_constraints_and_none_meeting_is_explain
 
 
 def test_a_lock_that_keeps_the_hand_from_the_target_says_so():
-    """Finding 16 (issue 25): a lock that made the target unreachable gave no message."""
+    """A lock that made the target unreachable gave no message."""
     from viz_helpers import shipped_solver_or_skip
 
     with running_app(shipped_solver_or_skip("ikdp_n4"), target=(3.0, 0.0), animation_seconds=0.0) as app:
@@ -321,7 +286,7 @@ def test_a_lock_that_keeps_the_hand_from_the_target_says_so():
 
 
 def test_turning_follow_off_gives_the_highlight_back_to_best(app):
-    """Finding 8 (issue 25): follow mode left the highlight on a sample number after it was turned off."""
+    """Follow mode left the highlight on a sample number after it was turned off."""
     controls = app.constraint_controls
     controls.follow.value = True
     settle(app)
@@ -334,7 +299,7 @@ def test_turning_follow_off_gives_the_highlight_back_to_best(app):
 
 
 def test_a_robot_s_dropped_obstacle_stands_clear_of_the_robot_shown_toward_the_camera(tiny_chain_checkpoint):
-    """Finding 4 (issue 25): in 3-D the dropped sphere sat on the middle joint of the robot shown, inside its
+    """In 3-D the dropped sphere sat on the middle joint of the robot shown, inside its
     opaque meshes, and could not be seen. It now stands in front of it: clear of every link, toward the camera."""
     from ikdp_viz.camera import camera_fit_3d
     from ikdp_viz.constraint_scene import LINK_CLEARANCE, segment_distances
@@ -354,8 +319,28 @@ def test_a_robot_s_dropped_obstacle_stands_clear_of_the_robot_shown_toward_the_c
         assert np.allclose(entry["nodes"][1].position, entry["position"])  # its gizmo, and the sphere with it
 
 
+def test_a_robot_s_obstacle_has_a_colour_of_its_own_and_a_legend_entry_while_drawn(tiny_chain_checkpoint):
+    """An obstacle dragged onto the arm vanished among the failing robots drawn in the same red: its colour stands
+    apart from every shade of "fails", and the legend names it while it is drawn, and only then."""
+    with running_app(ikdp.load(tiny_chain_checkpoint), animation_seconds=0.0) as app:
+        settle(app)
+        controls = app.constraint_controls
+        assert not any("obstacle" in entry.text for entry in app.writer.frame.legend)
+        controls.add_obstacle()
+        settle(app)
+        color = np.array(controls.obstacles[0]["nodes"][0].color, dtype=float)
+        for red in (VIOLATES, VIOLATES_OTHERS, VIOLATES_FAINT):
+            assert np.linalg.norm(color - np.array(red)) > 100, (color, red)
+        named = [entry for entry in app.writer.frame.legend if "obstacle" in entry.text]
+        assert len(named) == 1 and np.allclose(named[0].swatch.color, color)
+        assert "obstacle" in app.panel.learn.legend.content
+        controls.clear_obstacles()
+        settle(app)
+        assert not any("obstacle" in entry.text for entry in app.writer.frame.legend)
+
+
 def test_a_robot_with_no_sample_meeting_the_constraints_says_why_in_the_main_readout():
-    """Finding 4 (issue 25): the Z1 read "Constraints hold for 0 of 16" with no hint why (the Constraints folder,
+    """The Z1 read "Constraints hold for 0 of 16" with no hint why (the Constraints folder,
     closed by default, had one line). Both readouts now name the failing constraint and what to do."""
     from viz_helpers import shipped_solver_or_skip
 
@@ -378,3 +363,36 @@ def test_a_robot_with_no_sample_meeting_the_constraints_says_why_in_the_main_rea
         settle(app)
         assert app.solved.view.final_error.min() > 0.05
         assert "**no sample reaches the target with these locks**" in app.panel.readout_text.content
+
+
+def test_follow_mode_is_trackings_step_small_drags_reach_each_target_with_small_joint_steps():
+    """Ten drags of 0.1 along a line on ikdp_n4: follow mode keeps what solver.track keeps on the same path from the
+    same pose (every target reached within the arm's tolerance, the joints moving a little each step), and says no
+    pull missed."""
+    from viz_helpers import shipped_solver_or_skip
+
+    solver = shipped_solver_or_skip("ikdp_n4")
+    with running_app(solver, target=(2.2, 1.2), animation_seconds=0.0) as app:
+        settle(app)
+        controls = app.constraint_controls
+        controls.follow.value = True
+        settle(app)
+        start = controls.last_pose.copy()
+        path = np.array([[2.2 - 0.1 * step, 1.2] for step in range(1, 11)])
+        request = app.solved.request
+        tracked = solver.track(
+            torch.as_tensor(path), torch.as_tensor(start), num_samples=request.num_samples,
+            sampler=request.sampler, steps=request.steps, refine_steps=request.refine_steps,
+            generator=torch.Generator().manual_seed(0),
+        )  # fmt: skip
+        assert bool(tracked.reached.all()) and tracked.largest_jump < 0.15  # what the library does here
+        for index, (x, y) in enumerate(path):
+            drag_gizmo(app, x, y, phase="update")
+            settle(app)
+            kept = controls.last_pose
+            tip = solver.arm.end_effector(torch.as_tensor(kept, dtype=torch.float64)).numpy()
+            assert np.linalg.norm(tip - (x, y)) < solver.arm.position_tolerance, (x, tip)
+            np.testing.assert_allclose(kept, tracked.angles[index].numpy(), atol=1e-3)  # the pose track keeps
+            text = controls.readout.content
+            assert "missed" not in text and "branch switch" not in text, text
+        assert controls.branch_switches == 0 and controls.largest_jump < 0.15

@@ -1,4 +1,4 @@
-"""One Frame of truth (issue 25): the readouts, the chart and the legend of a picture come from the same snapshot
+"""One Frame of truth: the readouts, the chart and the legend of a picture come from the same snapshot
 as its colours, so they name the same sample and the same colours. Plain values: no viser, no server."""
 
 from __future__ import annotations
@@ -21,7 +21,13 @@ from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK, TIP_FAINT, build_view
 def planar_solve(violation=None):
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # sample 1 lands on the target
     request = SimpleNamespace(
-        sampler="ddpm", sampler_label="ddpm", seed=0, refine_steps=0, compare_sampler=None, constraints=()
+        sampler="ddpm",
+        sampler_label="ddpm",
+        seed=0,
+        refine_steps=0,
+        compare_sampler=None,
+        constraints=(),
+        compare_note=None,
     )
     return SimpleNamespace(request=request, view=view, trail_points=trail_points(view.joints), solve_seconds=0.01,
                            compare=None, state_violation=violation, preview_of=None)  # fmt: skip
@@ -45,7 +51,7 @@ def test_the_readout_and_the_chart_follow_the_sample_the_scene_highlights():
 
 
 def test_the_legend_names_the_colours_the_frame_draws():
-    """Finding 10 (issue 25): green meant both refined and constraints-hold; under constraint colours the legend
+    """Green meant both refined and constraints-hold; under constraint colours the legend
     still showed the highlighted arm blue; the tips' swatch was their final orange only; 3-D listed a red cross."""
     solved = planar_solve(violation=np.array([[0.5, 0.5], [0.5, 0.0], [0.0, 0.3]]))  # (S+1, K)
     plain = frame_of(solved, 2, color_by_constraint=False)
@@ -55,8 +61,10 @@ def test_the_legend_names_the_colours_the_frame_draws():
     assert {HOLDS, VIOLATES} <= {entry.swatch.color for entry in colored.legend}
     assert tuple(colored.palette.arms[2, 0]) == HOLDS  # the highlighted arm is green where the legend says green
     assert REFINED not in (HOLDS, VIOLATES)
-    tips = next(entry for entry in plain.legend if entry.text.startswith("tips"))
-    assert (tips.swatch.faint, tips.swatch.color) == (TIP_FAINT, TIP_DARK)  # the ramp the tips are drawn in
+    tips = next(entry for entry in plain.legend if entry.text.startswith("tip"))
+    # one dot, drawn at the step shown pale (t = T) to orange (t = 0), as the words say: no ramp of tips
+    assert (tips.swatch.shape, tips.swatch.faint, tips.swatch.color) == ("dot", TIP_FAINT, TIP_DARK)
+    assert tuple(plain.palette.tips[0]) == TIP_FAINT and tuple(plain.palette.tips[-1]) == TIP_DARK
     robot = ChainKind().legend_entries(ViewSettings(), constraint_colors=False, view=None, solved=None)
     assert not any(entry.swatch.shape == "cross" for entry in robot)  # 3-D draws the target as the gizmo
 
@@ -98,3 +106,12 @@ def test_the_legend_lists_the_trail_only_while_it_is_drawn(kind, recording):
         return any("trail" in entry.text for entry in entries)
 
     assert trail_listed(True) and not trail_listed(False)
+
+
+def test_under_constraint_colours_the_legend_names_the_highlighted_samples_blue_trail():
+    """With every sample's trail shown the highlighted one's stays blue while the arms turn green or red: the
+    legend had no blue entry then (the page's browser suite saw blue pixels that no entry named)."""
+    solved = planar_solve(violation=np.array([[0.5, 0.5], [0.5, 0.0], [0.0, 0.3]]))
+    frame = frame_of(solved, 2, trail_of="all samples")
+    assert (frame.palette.trail[2, 0 : solved.view.num_links, 0] == ACCENT_DARK).all()  # sample 1's trail: blue
+    assert any(entry.swatch.color == ACCENT_DARK for entry in frame.legend), [e.text for e in frame.legend]

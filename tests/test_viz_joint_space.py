@@ -226,7 +226,7 @@ def test_toggling_the_view_draws_its_nodes_and_the_slider_moves_the_samples(two_
         assert nodes.last_field.timestep == 39  # the denoiser's call on the state at t = 40
         assert not np.allclose(nodes.samples.points, final_samples)
         assert not np.allclose(nodes.arrows.points, final_arrows)
-        app.panel.timestep.value = 70  # finding 6 (issue 25): the dots were faint on the light square near t = T
+        app.panel.timestep.value = 70  # the dots must not be faint on the light square near t = T
         assert (nodes.samples.colors.min(axis=-1) <= 60).all()  # dark (or the deep blue) at every step, not FAINT
         app.move_target((0.0, 0.0))  # the base: a curve of solutions
         settle(app)
@@ -246,7 +246,7 @@ def test_for_more_links_two_chosen_joints_are_shown_against_the_final_samples(ti
         assert controls.joints() == (0, 2)
         view = app.solved.view
         assert nodes.solutions.points.shape == (2 * view.num_samples, 2, 3)  # a cross on each final sample
-        # finding 6 (issue 25): the crosses stay inside the square, which stands clear of the ground grid; they are
+        # the crosses stay inside the square, which stands clear of the ground grid; they are
         # not the target's red, the legend says what they are, and each axis ends in -π / π
         (cx, cy), half = nodes.square.centre, nodes.square.side / 2
         points = nodes.solutions.points

@@ -29,7 +29,7 @@ def test_solve_text_reads_the_shown_step_and_the_end_for_the_highlighted_sample(
 
 
 def test_with_refinement_the_best_says_it_ranks_refined_errors_and_names_the_best_raw_sample_apart():
-    """Finding 7 (issue 25): "sample 5 ..., by raw tip error at t = 0, sample 11: 0.0167 now" gave sample 5's
+    """Once, "sample 5 ..., by raw tip error at t = 0, sample 11: 0.0167 now" gave sample 5's
     numbers after sample 11's name; the numbers now follow their own sample, the raw best has a line of its own."""
     import dataclasses
 
@@ -46,7 +46,7 @@ def test_with_refinement_the_best_says_it_ranks_refined_errors_and_names_the_bes
 
 
 def test_the_readout_says_why_the_highlighted_sample_is_the_one_followed():
-    """Finding 8 (issue 25): a sample number chosen (or left by follow mode) read like "best"."""
+    """A sample number chosen (or left by follow mode) must not read like "best"."""
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # sample 1 is the best
     options = dict(sampler="ddpm", seed=0, refine_steps=0, solve_seconds=0.0)
     assert "sample 2 of 2 (chosen in the panel's highlight): " in solve_text(
@@ -69,6 +69,6 @@ def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
 
 def test_error_range_is_the_whole_decades_around_every_error():
     assert error_range(np.array([[3.0, 0.5], [0.02, 0.0]])) == (-2, 1)  # 0.01 .. 10
-    assert error_range(np.array([[9.87], [0.00196]])) == (-3, 1)  # issue 10's target: not 0.00098, a decade
+    assert error_range(np.array([[9.87], [0.00196]])) == (-3, 1)  # ikdp_n4 at (-0.010, 1.200): not 0.00098, a decade
     assert error_range(np.array([[0.5, 0.5]])) == (-1, 0)  # one decade at least
     assert error_range(np.zeros((2, 2))) == (-3, -2)

@@ -72,7 +72,7 @@ def test_the_record_command_writes_a_page_for_a_robot(tiny_chain_checkpoint, tmp
 
 
 def test_the_record_command_answers_a_bad_checkpoint_in_one_line_and_names_itself(tmp_path):
-    """Finding 14 (issue 25): `--ckpt nope` printed a traceback; the usage line showed a file path; the help
+    """`--ckpt nope` once printed a traceback; the usage line showed a file path; the help
     offered a robot target only as a quaternion."""
     import subprocess
     import sys
@@ -109,7 +109,7 @@ def created(data: dict, kind: str) -> list[str]:
 
 
 def test_a_planar_recording_marks_its_target_once_and_lays_the_legend_over_the_page(shared):
-    """Findings 2 and 16 (issue 25): the shared page drew the planar target twice, about 10 px apart (its own
+    """The shared page once drew the planar target twice, about 10 px apart (its own
     marker and the viewer's cross), and had no legend."""
     _, _, page = shared
     data = recording(page)
@@ -123,7 +123,7 @@ def test_a_planar_recording_marks_its_target_once_and_lays_the_legend_over_the_p
 
 
 def test_a_robot_recording_labels_every_step_where_its_camera_sees_it(tiny_chain_checkpoint):
-    """Finding 3 (issue 25): the Panda's shared page showed no step label. The target's frame, made before the
+    """The Panda's shared page once showed no step label. The target's frame, made before the
     recording began, was /recording/target, a sibling of the label: with it, chromium drew no label (the label at
     the robot's base neither); under a name of its own the label shows. And the label stood about 43 degrees off
     the camera's axis (viser's field of view is 75): it is now recorded where the camera looks."""
@@ -192,7 +192,7 @@ def assert_legend_lists_what_is_drawn(page: str, nodes: dict[str, str]) -> list[
 @pytest.mark.parametrize("extras", [False, True], ids=["plain", "x0-and-refined"])
 def test_a_recorded_page_s_legend_lists_exactly_what_the_recording_draws(tiny_checkpoint, tiny_chain_checkpoint,
                                                                           extras):  # fmt: skip
-    """Issue 25 (item 4 of the last round): a recorded Panda page listed x̂0, refined, the prior and "drag its
+    """A recorded Panda page once listed x̂0, refined, the prior and "drag its
     arrows and rings", none of which the page draws or lets anyone do; the planar page listed x̂0, refined and the
     prior too. Each legend line now has its node drawn in the recording, and each of these nodes its line."""
     import threading

@@ -240,3 +240,21 @@ def test_line_colors_send_the_linear_value_of_the_colour_meant():
     assert sent[1].tolist() == [3, 3, 3]  # the page's sRGB encoding of 3 / 255 shows 28 again
     encoded = 255 * np.where(sent / 255 <= 0.0031308, 12.92 * sent / 255, 1.055 * (sent / 255) ** (1 / 2.4) - 0.055)
     assert np.abs(encoded[3] - [20, 90, 210]).max() < 6  # uint8 steps in linear space are coarse near black
+
+
+@pytest.mark.parametrize("aspect", [0.3, 1280 / 1700, 1.0, 1.6, 3.0])
+def test_the_field_of_view_sees_across_at_least_as_much_as_a_square_canvas(aspect):
+    """A tall canvas's camera sees as far to the sides as viser's default sees up and down: the reach fits."""
+    from ikdp_viz.camera import VERTICAL_FOV, field_of_view
+
+    fov = field_of_view(aspect)
+    across, up = np.tan(fov / 2) * aspect, np.tan(fov / 2)
+    assert across >= np.tan(VERTICAL_FOV / 2) - 1e-12 and up >= np.tan(VERTICAL_FOV / 2) - 1e-12
+    assert min(across, up) == pytest.approx(np.tan(VERTICAL_FOV / 2))  # no wider than needed
+
+
+def test_the_field_of_view_refuses_a_canvas_with_no_width():
+    from ikdp_viz.camera import field_of_view
+
+    with pytest.raises(ValueError, match="aspect"):
+        field_of_view(0.0)

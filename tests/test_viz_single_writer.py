@@ -1,8 +1,9 @@
 """One writer of the panel: every panel output, a control's own state included, is written by the drawing loop.
 
-Issue 25 asked that callbacks only record intent. The Share button's label, the Export notification and some
-controls' own states (the highlight's options, the steps slider, a lock field enabled, the seed shown) were
-written from the thread of the callback; here every update viser sends for the panel is traced to its thread.
+Callbacks only record intent, so that no two threads race to write one control. The Share button's label, the
+Export notification and some controls' own states (the highlight's options, the steps slider, a lock field
+enabled, the seed shown) were once written from the thread of the callback; here every update viser sends for the
+panel is traced to its thread.
 """
 
 from __future__ import annotations

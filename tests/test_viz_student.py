@@ -1,14 +1,15 @@
-"""A model's few-step student in the viewer (issue 27, deliver 3): found beside its teacher, solved as the sampler
-"student", one button from the teacher's full denoising, compared with it from the same x_T, and a drag's preview.
+"""A model's few-step student in the viewer: folded into its teacher's file, solved as the sampler "student", one
+button from the teacher's full denoising, compared with it from the same x_T, and a drag's preview.
 
-A tiny Panda teacher (T = 10) and a 2-step student distilled from it by ikdp.distill in a folder of their own:
-the poses are poor, which model ran and what the panel says are checked.
+A tiny Panda teacher (T = 10) and a 2-step student distilled from it by ikdp.distill, folded into the teacher's file
+by ikdp.ship and also in a file of its own: the poses are poor, which model ran and what the panel says are checked.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
@@ -16,7 +17,6 @@ from ikdp_viz.messages import ShowSolve
 from ikdp_viz.student import (
     STUDENT,
     TEACHER,
-    find_student,
     is_student_of,
     matched_its_teacher,
     model_and_student,
@@ -41,14 +41,16 @@ def app(models):
         yield app
 
 
-def test_the_student_is_found_beside_its_teacher_and_only_there(models, tiny_chain_checkpoint, tiny_checkpoint):
+def test_the_student_is_the_one_folded_into_its_teachers_file(models, tiny_chain_checkpoint, tiny_checkpoint):
     teacher_path, student_path, folder = models
     teacher = ikdp.load(teacher_path)
-    student = find_student(teacher, folder)
-    assert student is not None and student.metadata["path"] == str(student_path)
-    assert find_student(ikdp.load(tiny_checkpoint), folder) is None  # another model has no student here
-    assert find_student(student, folder) is None  # a student has none of its own
-    assert find_student(teacher, None) is None
+    opened, student = model_and_student(teacher, folder)
+    assert opened is teacher and student is teacher.student
+    own_file = ikdp.load(student_path)
+    for name, weights in own_file.model.state_dict().items():
+        assert torch.equal(student.model.state_dict()[name], weights), name
+    assert model_and_student(ikdp.load(tiny_checkpoint), folder)[1] is None  # another model has no student
+    assert model_and_student(ikdp.load(tiny_chain_checkpoint), folder)[1] is None  # nor has the unshipped teacher
     record = dict(student.metadata["distill"])
     assert is_student_of(record, teacher)
     record["teacher_metrics"] = {**record["teacher_metrics"], "tip_error_median": 1.0}  # another model, same name
@@ -189,7 +191,7 @@ def test_a_folders_checkpoints_are_read_once_for_the_dropdown_and_the_student(mo
     monkeypatch.setattr(headers, "_headers", {})
     monkeypatch.setattr(headers, "read_checkpoint", lambda path: reads.append(path) or real(path))
     ModelChoices(list_checkpoints(folder), teacher, folder)
-    assert find_student(teacher, folder) is not None
+    assert model_and_student(teacher, folder)[1] is not None
     ModelChoices(list_checkpoints(folder), teacher, folder).refresh(teacher)
     assert sorted(reads) == sorted(folder.glob("*.pt"))  # each file once
 
@@ -203,4 +205,16 @@ def test_the_teachers_run_is_called_what_the_student_matched_only_where_its_dist
     old = {"train": {}}  # a record from before the option: it matched
     assert [matched_its_teacher(SimpleNamespace(metadata=m)) for m in (matched, free, old)] == [True, False, True]
     assert target_title("dpmpp2m", 16, matched=False) == "Teacher: DPM-Solver++, 16 steps, same x_T"
-    assert ikdp.load("ikdp_panda_4step").metadata["train"]["match_weight"] == 0.0  # the shipped one's last stage
+    assert ikdp.load("ikdp_panda").student.metadata["train"]["match_weight"] == 0.0  # the shipped student
+
+
+def test_comparing_the_sampler_shown_with_itself_says_there_is_nothing_to_compare(app):
+    panel = app.panel
+    panel.sampler.value = STUDENT
+    panel.learn.compare.value = STUDENT  # the very sampler shown: nothing drawn beside it
+    settle(app)
+    assert app.solved.compare is None
+    assert "nothing to compare" in panel.readout_text.content
+    panel.learn.compare.value = "ddpm"
+    settle(app)
+    assert app.solved.compare is not None and "nothing to compare" not in panel.readout_text.content

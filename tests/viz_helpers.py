@@ -205,9 +205,9 @@ if (gl) {
 class RenderingBrowser:
     """A chromium launched through Playwright and seen to draw WebGL; relaunched when it does not.
 
-    Three CI runs (2026-11-25 twice, 2026-11-26) kept the first browser module's page white (panel and canvas,
-    the whole page) for a minute, through a reload; every later module, each with a browser of its own, drew at
-    once, and the module alone never failed. So the remedy is a new browser, tried before any test uses it.
+    In three CI runs the first browser module's page stayed white (panel and canvas, the whole page) for a
+    minute, through a reload; every later module, each with a browser of its own, drew at once, and the module
+    alone never failed. So the remedy is a new browser, tried before any test uses it.
     """
 
     def __init__(self, playwright, executable: str, args: list[str], attempts: int = 3):

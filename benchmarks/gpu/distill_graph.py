@@ -1,14 +1,14 @@
 """GPU: steps per second of `ikdp.distill`'s one-step recipe, eager against one CUDA graph a step, in one process.
 
-    python -m benchmarks.gpu.distill_graph                # the shipped ikdp_panda_gpu as teacher; JSON to $OUT
+    python -m benchmarks.gpu.distill_graph                # the shipped ikdp_panda as teacher; JSON to $OUT
     python -m benchmarks.gpu.distill_graph ikdp_n4 cpu    # a dry run on a CPU: the graph row is an error
 
-The recipe of docs/BENCHMARKS.md's one-step students (no match term, the distribution term against a pool of the
-teacher's refined DDPM samples, the FK miss as a distance), batch 1024 of 256 targets × 4 noises, the student
-predicting the pose itself. Rows: `eager` (EagerSteps: the data drawn on the GPU, op by op) and `graph`
-(GraphedSteps: `ikdp.distill --device cuda`'s default for this recipe). Each warmed up, then timed in `WINDOWS`
-windows of `STEPS` steps with a synchronize at both ends; the median window's rate is quoted. Then the weights'
-largest difference after the same 30 steps of the same stream.
+The recipe of the one-step students (docs/training.md, "Few-step students": no match term, the distribution term
+against a pool of the teacher's refined DDPM samples, the FK miss as a distance), batch 1024 of 256 targets × 4
+noises, the student predicting the pose itself. Rows: `eager` (EagerSteps: the data drawn on the GPU, op by op)
+and `graph` (GraphedSteps: `ikdp.distill --device cuda`'s default for this recipe). Each warmed up, then timed in
+`WINDOWS` windows of `STEPS` steps with a synchronize at both ends; the median window's rate is quoted. Then the
+weights' largest difference after the same 30 steps of the same stream.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from ikdp.distill_reference import PoseStream
 from ikdp.distill_step import DistillLoss, student_sampler
 from ikdp.train_steps import EagerSteps, GraphedSteps
 
-TEACHER = sys.argv[1] if len(sys.argv) > 1 else "ikdp_panda_gpu"
+TEACHER = sys.argv[1] if len(sys.argv) > 1 else "ikdp_panda"
 DEVICE = torch.device(sys.argv[2] if len(sys.argv) > 2 else "cuda")
 OUT = Path(os.environ.get("OUT", "/tmp")) / "distill_graph.json"
 STEPS, WINDOWS = int(os.environ.get("STEPS", "50")), int(os.environ.get("WINDOWS", "3"))

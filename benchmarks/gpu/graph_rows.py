@@ -1,5 +1,5 @@
 """GPU: one target, K = 16, the eager loop against its CUDA-graph replay (ikdp/cuda_graph.py), and whether the two
-give bit-identical states. `python benchmarks/gpu/graph_rows.py`; JSON to $OUT (docs/ROBOTS.md, "On a GPU")."""
+give bit-identical states. `python benchmarks/gpu/graph_rows.py`; JSON to $OUT (docs/library.md, "Capture on a GPU")."""
 
 # ruff: noqa: B023  (each lambda is timed at once, inside its loop turn)
 import json

@@ -5,7 +5,8 @@
 Run from the repository root with the Panda URDF copied to .carry/example-robot-data/robots/panda_description/urdf/
 (the device machine has no example-robot-data). A 200-step probe sets each run's --steps to fill the budget; each
 final checkpoint is measured (raw DDPM, K = 1, robot_benchmark's 1000 targets) and written without its optimizer
-state, split in 15 MB parts. The runs of issue 21's ablation are in `runs` below; docs/ROBOTS.md gives the results.
+state, split in 15 MB parts. The runs (epsilon- against x0-prediction, MLP against FiLM) are in `runs` below; their
+numbers are in benchmarks/results/gpu_panda_ablation.json, and what they chose (the GPU recipe) in docs/robots.md.
 """
 
 # ruff: noqa: E402  (a script run once on the device machine: the imports follow its steps)

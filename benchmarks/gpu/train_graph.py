@@ -1,5 +1,5 @@
-"""GPU: training steps per second of `ikdp.train`'s three ways to take a step, in one process on one GPU
-(issue 27, deliver 4: training as fast as the hardware allows).
+"""GPU: training steps per second of `ikdp.train`'s three ways to take a step, in one process on one GPU: which
+one trains as fast as the hardware allows.
 
     python -m benchmarks.gpu.train_graph PANDA_URDF       # JSON to $OUT/train_graph.json (else /tmp)
     python -m benchmarks.gpu.train_graph PANDA_URDF cpu   # a dry run on a CPU: the graph row is an error

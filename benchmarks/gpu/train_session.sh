@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One device run for issue 27's GPU training (docs/ROBOTS.md, "Training on a GPU"), prepared on a CPU. Each stage
+# One device run of the GPU training (docs/training.md, "On a GPU"), prepared on a CPU. Each stage
 # has its share of a deadline ($DEADLINE seconds from the start, default 540), so a run cut short still brings back
 # what it finished:
 #   1. steps per second of the old loop (data from the CPU), the eager loop (data on the GPU) and --graph, with the
@@ -32,7 +32,7 @@ export PYTHONUNBUFFERED=1
 STEPS=50 WINDOWS=3 timeout 100 python3 -m benchmarks.gpu.train_graph "$PANDA" "$DEVICE" 2>&1 | tail -14 \
     | tee -a "$OUT/bench.log"
 
-timeout 120 python3 -m benchmarks.gpu.distill_graph ikdp_panda_gpu "$DEVICE" 2>&1 | grep -v "reference pool" | tail -5 \
+timeout 120 python3 -m benchmarks.gpu.distill_graph ikdp_panda "$DEVICE" 2>&1 | grep -v "reference pool" | tail -5 \
     | tee -a "$OUT/bench.log"
 
 mkdir -p runs
@@ -53,11 +53,7 @@ if [ ! -f runs/panda_gpu.pt ] && [ $((SECONDS - started)) -lt 90 ]; then  # the 
 fi
 
 # the solving weights alone (no optimizer state), in parts under the 16 MB a file may bring back
-python3 -c "
-from pathlib import Path; from ikdp.checkpoint import read_checkpoint, save_checkpoint
-payload = read_checkpoint(Path('runs/panda_gpu.pt'))
-keep = ('model', 'prior', 'train', 'metrics', 'history', 'state_dict')
-save_checkpoint(Path('runs/panda_gpu_slim.pt'), {key: payload[key] for key in keep if key in payload})" \
+python3 -m ikdp.ship --model runs/panda_gpu.pt --output runs/panda_gpu_slim.pt \
     && split -b 15M -d runs/panda_gpu_slim.pt "$OUT/panda_gpu.pt.part"
 tar czf "$OUT/logs.tgz" runs/logs 2>/dev/null
 

@@ -28,6 +28,7 @@ from torch import nn
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks, scale_and_shift
+from ikdp.fused_chain import small_batch
 from ikdp.refine import dls_step
 from ikdp.representation import SCALED_BY_LIMITS, AngleRepresentation
 
@@ -52,10 +53,13 @@ class ChainFiLMDenoiser(nn.Module):
         self.int8 = None  # Int8Weights (ikdp/denoisers/int8.py) when loaded with precision="int8": sampling only
         self.representation = representation
         dim, hidden, joints = representation.dim, config.hidden, arm.num_joints
-        error_dim = 3 if arm.target_dim == 3 else 6
+        # the task error: the position misses (3 per end effector), then for poses as many rotation entries
+        error_dim = arm.position_dim if arm.target_dim == arm.position_dim else 2 * arm.position_dim
         feature_dim = dim + error_dim + joints  # x_t, the task error, a DLS step per joint
         self.damping_squared = (DLS_DAMPING * arm.span) ** 2
-        error_scale = torch.cat((torch.full((3,), MISS_SCALE / arm.span), torch.ones(error_dim - 3)))
+        error_scale = torch.cat(
+            (torch.full((arm.position_dim,), MISS_SCALE / arm.span), torch.ones(error_dim - arm.position_dim))
+        )
         scale = torch.cat((torch.ones(dim), error_scale, torch.ones(joints)))
         self.register_buffer("feature_scale", scale, persistent=False)
         kinematic_mask = torch.cat(
@@ -109,7 +113,11 @@ class ChainFiLMDenoiser(nn.Module):
         """(M, D) noisy sample, (M, target_dim) target -> the input features (M, F): x_t, the task error and the
         DLS step in x units; and that step in radians per joint, (M, J), for the skip."""
         joints = self.representation.decode(x, clamp=not self.config.kinematics_past_limits)
-        error, jacobian = self.arm.task_error_and_jacobian(joints, target)  # (M, E), (M, E, J)
+        # a few rows without gradients (one target's K on a CPU): the fused kinematics, the same numbers to float
+        # rounding in a tenth of the time; training and large batches keep the arm's own
+        fused = not torch.is_grad_enabled() and small_batch(len(joints), joints.device)
+        kinematics = self.arm.small_batch_kinematics() if fused else self.arm
+        error, jacobian = kinematics.task_error_and_jacobian(joints, target)  # (M, E), (M, E, J)
         step = dls_step(jacobian, error, self.damping_squared)
         if self.config.limit_aware_step:
             blocked = self.arm.blocked_by_limits(joints, step)

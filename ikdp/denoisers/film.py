@@ -1,6 +1,6 @@
 """Our default denoiser: a kinematics-aware residual MLP conditioned by FiLM.
 
-Why this shape (measured in docs/DENOISER_CHOICE.md):
+Why this shape (measured by benchmarks/denoiser_choice.py; docs/paper.md, "Where we differ from the paper"):
 - The network sees what the arm *does* at x_t, not only the numbers of x_t:
   the tip's miss vector e = target - tip, and the damped least-squares step
   per link (how a DLS solver would turn each link). Near t = 0 denoising
@@ -77,7 +77,7 @@ class FiLMDenoiser(nn.Module):
             keep = self.kinematic_mask | (t < self.config.kinematic_until)[:, None]
             feature_scale = feature_scale * keep
         # written into one buffer: a stack and a cat copied every row twice more (4 KB a row for a
-        # 128-wide, 3-block model; 10 ms of a 57 ms batch solve of 500 targets, docs/BENCHMARKS.md)
+        # 128-wide, 3-block model: 10 ms of a 57 ms batch solve of 500 targets)
         blocks = self.config.blocks
         out = torch.empty(len(t), blocks + 1, 2, self.config.hidden, dtype=film.dtype, device=film.device)
         out[:, :blocks, 0] = 1 + film[:, :, 0]

@@ -2,24 +2,30 @@
 
 Why: one target's solve runs the denoiser 80 times on 16 rows. In torch each call is some
 forty ops of a few microseconds' fixed cost each; their arithmetic is a fifth of that. The C
-function does the whole call in one go (docs/BENCHMARKS.md has the times).
+function does the whole call in one go: at 16 rows, 3 times faster than the torch workspace and
+than torch.compile's best; at 16,000 rows, 2 times (benchmarks/film_step.py measures them).
 
-The kernel is compiled once per machine with the system's C compiler (`cc`, or $CC) into
-ikdp's cache folder ($IKDP_CACHE, else $XDG_CACHE_HOME/ikdp, else ~/.cache/ikdp), keyed by
-the source, the flags, the compiler and the CPU (it is built with -march=native), and
-written atomically. No compiler, a failed build, IKDP_COMPILED=0, a GPU tensor or float64:
-`compiled_workspace` returns None and the torch path runs, with the same results to float
-rounding (tests/test_film_compiled.py compares them).
+The kernel is compiled once per machine with the system's C compiler ($CC when set, else the
+first of cc, gcc, clang, cl) into ikdp's cache folder ($IKDP_CACHE, else $XDG_CACHE_HOME/ikdp,
+else ~/.cache/ikdp), keyed by the source, the flags, the compiler and the CPU, and written
+atomically. It is built for this CPU (-march=native) where the compiler accepts that, else
+for the compiler's default target: the source is standard C with optional vector types, so
+any C compiler builds it. Without the kernel (IKDP_COMPILED=0, no compiler, a failed build)
+the torch path runs, with the same results to float rounding (tests/test_film_compiled.py
+compares them), and the log says so once, with the reason. A GPU tensor or float64 always
+takes the torch path: the kernel is float32 on the CPU.
 """
 
 from __future__ import annotations
 
 import ctypes
 import hashlib
+import logging
 import os
 import platform
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 from pathlib import Path
@@ -29,8 +35,14 @@ import torch
 SOURCE = Path(__file__).with_name("film_kernel.c")
 # -ffast-math lets the compiler vectorise expf (SiLU, through glibc's vector maths) and reassociate the
 # sums: results differ from torch's at float rounding, as torch's own kernels differ between machines
-FLAGS = ("-O3", "-march=native", "-ffast-math", "-shared", "-fPIC", "-std=c99")
+FLAGS = ("-O3", "-ffast-math", "-shared", "-fPIC", "-std=c99")
+NATIVE = ("-march=native",)  # tried first; a compiler or CPU that refuses it gets the portable build
+MSVC_FLAGS = ("/nologo", "/O2", "/fp:fast", "/LD")
+COMPILERS = ("cc", "gcc", "clang", "cl")
+SUFFIX = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
+SLOWER = "about 3 times slower for one target"  # torch workspace / kernel: benchmarks/film_step.py
 
+logger = logging.getLogger(__name__)
 _lock = threading.Lock()
 _library: ctypes.CDLL | None = None
 _tried = False
@@ -43,8 +55,15 @@ def cache_folder() -> Path:
     return Path(base) / "ikdp"
 
 
-def _compiler() -> str | None:
-    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc") or shutil.which("clang")
+def find_compiler() -> str | None:
+    """$CC when set (only it: a user who names a compiler means that one), else the first on the PATH."""
+    if os.environ.get("CC"):
+        return shutil.which(os.environ["CC"])
+    return next((found for name in COMPILERS if (found := shutil.which(name))), None)
+
+
+def is_msvc(compiler: str) -> bool:
+    return Path(compiler).stem.lower() in ("cl", "clang-cl")
 
 
 def _cpu_name() -> str:
@@ -61,52 +80,98 @@ def _cpu_name() -> str:
     return "\n".join(first.values()) or platform.processor()
 
 
-def _build(compiler: str) -> Path:
-    version = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30).stdout
+def compile_command(compiler: str, flags: tuple[str, ...], output: Path) -> list[str]:
+    if is_msvc(compiler):  # builds the DLL and its import library beside `output`, in the build's own folder
+        return [compiler, *MSVC_FLAGS, *flags, str(SOURCE), f"/Fe{output}"]
+    return [compiler, *FLAGS, *flags, str(SOURCE), "-o", str(output), "-lm"]
+
+
+def build(compiler: str, flags: tuple[str, ...]) -> Path:
+    """film_kernel.c built with `flags` beside the common ones, once: the cached library when it exists.
+
+    Raises subprocess.CalledProcessError (its stderr holds the compiler's message) when the build fails.
+    """
+    version = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
     key = hashlib.sha256(
-        "\0".join((SOURCE.read_text(), " ".join(FLAGS), version, _cpu_name(), platform.machine())).encode()
-    ).hexdigest()[:16]
-    library = cache_folder() / f"film_kernel-{key}.so"
+        "\0".join(
+            (SOURCE.read_text(), " ".join(compile_command(compiler, flags, Path())), version.stdout + version.stderr,
+             _cpu_name(), platform.machine())
+        ).encode()
+    ).hexdigest()[:16]  # fmt: skip
+    library = cache_folder() / f"film_kernel-{key}{SUFFIX}"
     if library.exists():
         return library
     library.parent.mkdir(parents=True, exist_ok=True)
-    # build beside the target and rename: a concurrent process or a kill never leaves half a library
-    handle, temporary = tempfile.mkstemp(prefix=".film_kernel-", suffix=".so", dir=library.parent)
-    os.close(handle)
-    try:
+    # build in a folder beside the target and rename: a concurrent process or a kill never leaves half a
+    # library, and what else the compiler writes (MSVC's .obj, .lib, .exp) goes with the folder
+    with tempfile.TemporaryDirectory(prefix=".film_kernel-", dir=library.parent) as folder:
+        built = Path(folder) / library.name
         subprocess.run(
-            [compiler, *FLAGS, str(SOURCE), "-o", temporary, "-lm"], check=True, capture_output=True, timeout=120
-        )
-        os.replace(temporary, library)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
+            compile_command(compiler, flags, built), check=True, capture_output=True, text=True, timeout=120,
+            cwd=folder,
+        )  # fmt: skip
+        os.replace(built, library)
     return library
 
 
+def build_for_this_cpu(compiler: str) -> Path:
+    """The build for this CPU, else (the compiler refuses -march=native) the compiler's default target."""
+    if not is_msvc(compiler):
+        try:
+            return build(compiler, NATIVE)
+        except subprocess.CalledProcessError:
+            pass
+    return build(compiler, ())
+
+
+def open_library(path: Path) -> ctypes.CDLL:
+    """The built kernel with its two functions' signatures set."""
+    library = ctypes.CDLL(str(path))
+    function = library.ikdp_film_denoise
+    pointer, size = ctypes.c_void_p, ctypes.c_ssize_t
+    function.argtypes = [ctypes.POINTER(FilmStep), pointer, pointer, size, pointer, size, size]
+    function.restype = ctypes.c_int
+    library.ikdp_film_chunk_rows.argtypes, library.ikdp_film_chunk_rows.restype = [], ctypes.c_int
+    return library
+
+
+def _failure(error: Exception) -> str:
+    """The first line the compiler or loader gave: enough to act on, one line in the log."""
+    text = getattr(error, "stderr", None) or str(error)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return next((line for line in lines if "error" in line.lower()), lines[0] if lines else type(error).__name__)
+
+
+def _load() -> tuple[ctypes.CDLL | None, str]:
+    """The kernel, or None and why not."""
+    if os.environ.get("IKDP_COMPILED", "1") == "0":
+        return None, "IKDP_COMPILED=0"
+    compiler = find_compiler()
+    if compiler is None:
+        named = f"CC={os.environ['CC']!r} is not on the PATH" if os.environ.get("CC") else None
+        return None, named or f"no C compiler found (looked for {', '.join(COMPILERS)}; set CC to name one)"
+    try:
+        return open_library(build_for_this_cpu(compiler)), ""
+    except subprocess.CalledProcessError as error:
+        return None, f"{compiler} could not build {SOURCE.name}: {_failure(error)}"
+    except (OSError, subprocess.SubprocessError, AttributeError) as error:
+        return None, f"{SOURCE.name} could not be built by {compiler} or loaded: {_failure(error)}"
+
+
 def load_kernel() -> ctypes.CDLL | None:
-    """The compiled kernel, built on the first call; None where it cannot be (then never tried again)."""
+    """The compiled kernel, built on the first call; None where it cannot be (then never tried again).
+
+    The first call that finds no kernel says why in the log, once per process.
+    """
     global _library, _tried
     with _lock:
-        if _tried:
-            return _library
-        _tried = True
-        if os.environ.get("IKDP_COMPILED", "1") == "0":
-            return None
-        compiler = _compiler()
-        if compiler is None:
-            return None
-        try:
-            library = ctypes.CDLL(str(_build(compiler)))
-        except (OSError, subprocess.SubprocessError):
-            return None
-        function = library.ikdp_film_denoise
-        pointer, long = ctypes.c_void_p, ctypes.c_long
-        function.argtypes = [ctypes.POINTER(FilmStep), pointer, pointer, long, pointer, long, long]
-        function.restype = ctypes.c_int
-        library.ikdp_film_chunk_rows.argtypes, library.ikdp_film_chunk_rows.restype = [], ctypes.c_int
-        _library = library
-        return library
+        if not _tried:
+            _tried = True
+            _library, reason = _load()
+            if _library is None:  # switched off by the user: only a note; otherwise the user may want to fix it
+                level = logging.INFO if reason == "IKDP_COMPILED=0" else logging.WARNING
+                logger.log(level, "ikdp: the planar FiLM step runs in torch (%s), %s", reason, SLOWER)
+        return _library
 
 
 class FilmStep(ctypes.Structure):
@@ -148,6 +213,8 @@ class CompiledFiLMWorkspace:
             address(self.w_out), address(self.b_out), address(self.scratch), address(self.clean),
         )  # fmt: skip
         self.step_pointer = ctypes.byref(self.step)
+        self.x_shape = (rows, representation.dim)  # the rows the workspace's buffers hold
+        self.condition_shape = (blocks + 1, 2, hidden)
 
     # the sampling loop may pass one target and one condition per target, (B, ...), for M = B K rows
     accepts_per_target_conditions = True
@@ -159,6 +226,7 @@ class CompiledFiLMWorkspace:
         consecutive rows (the K samples of each of B targets): the kernel reads a group's row
         for each of its rows instead of the caller copying it K times.
         """
+        self.check(x, target, film)
         rows = x.shape[0]
         counts = {count for count in (target.shape[0], film.shape[0]) if count > 1}
         if len(counts) > 1 or (counts and rows % next(iter(counts))):
@@ -180,6 +248,35 @@ class CompiledFiLMWorkspace:
             rows_per_condition,
         )  # fmt: skip
         return self.clean
+
+    def check(self, x: torch.Tensor, target: torch.Tensor, film: torch.Tensor) -> None:
+        """The kernel reads and writes by address what this workspace was sized for: anything else is refused here.
+
+        One expression on the way through (a call of the kernel takes some 30 us: the check stays a small part
+        of it); the message is worked out only when something is wrong.
+        """
+        float32 = torch.float32
+        if (
+            x.shape == self.x_shape and target.shape[1:] == (2,) and film.shape[1:] == self.condition_shape
+            and target.shape[0] > 0 and film.shape[0] > 0
+            and x.dtype == float32 and target.dtype == float32 and film.dtype == float32
+            and x.is_cpu and target.is_cpu and film.is_cpu
+        ):  # fmt: skip
+            return
+        expected = {"x": self.x_shape, "target": ("B", 2), "film": ("B", *self.condition_shape)}
+        for name, tensor in (("x", x), ("target", target), ("film", film)):
+            if tensor.dtype != float32 or not tensor.is_cpu:
+                raise ValueError(
+                    f"compiled FiLM step: {name} must be float32 on the CPU, got {tensor.dtype} on {tensor.device}"
+                )
+            shape = expected[name]
+            if (
+                tensor.dim() != len(shape)
+                or tensor.shape[0] == 0
+                or any(size != want for size, want in zip(tensor.shape, shape, strict=True) if want != "B")
+            ):
+                wanted = "(" + ", ".join(map(str, shape)) + ")"
+                raise ValueError(f"compiled FiLM step: {name} must have shape {wanted}, got {tuple(tensor.shape)}")
 
 
 def compiled_workspace(denoiser, rows: int, like: torch.Tensor) -> CompiledFiLMWorkspace | None:

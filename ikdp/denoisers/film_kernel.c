@@ -25,36 +25,70 @@
 #define TILE 4   /* rows that share each weight loaded */
 #define CHUNK 32 /* rows taken through all layers at once: their activations fit in the L1/L2 cache */
 
+/* Standard C99 throughout, so that any C compiler builds it (GCC, Clang, MSVC; x86, ARM). The one
+ * extension, GCC/Clang vector types, is used where the compiler offers it and is never required:
+ * elsewhere (or with -DIKDP_PLAIN_C) the same sums run as plain loops, which compilers vectorise less well. */
+#if defined(_MSC_VER) && !defined(__clang__)
+#define RESTRICT __restrict /* MSVC's C has `restrict` only under /std:c11 */
+#else
+#define RESTRICT restrict
+#endif
+
+#if defined(_WIN32)
+#define EXPORT __declspec(dllexport) /* a DLL exports only what it is told to */
+#else
+#define EXPORT
+#endif
+
+#if defined(__GNUC__) && !defined(IKDP_PLAIN_C)
+#define VECTORS 1
+/* One vector is one register: 8 floats with AVX, else 4 (SSE2 on every x86-64, NEON on ARM). A 32-byte
+ * vector without AVX is emulated through memory and runs 20 times slower than the 16-byte one. */
+#if defined(__AVX__)
+#define LANES 8
+#else
+#define LANES 4
+#endif
+typedef float vec __attribute__((vector_size(LANES * sizeof(float))));
+/* memcpy, not a cast: the weights and rows are only float-aligned. Macros, not functions: a vector passed
+ * by value is an ABI question the compiler warns about */
+#define LOAD(vector, pointer) __builtin_memcpy(&(vector), (pointer), sizeof(vec))
+#define STORE(pointer, vector) __builtin_memcpy((pointer), &(vector), sizeof(vec))
+/* keep the weights in registers: folded into each multiply-add they were loaded 4 times. Only where a
+ * vector fits one register of the named class (SSE's "x" holds 16 bytes, 32 with AVX; NEON's "w" 16) */
+#if defined(__SSE__)
+#define KEEP_IN_REGISTERS(a, b) __asm__("" : "+x"(a), "+x"(b))
+#elif defined(__aarch64__)
+#define KEEP_IN_REGISTERS(a, b) __asm__("" : "+w"(a), "+w"(b))
+#else
+#define KEEP_IN_REGISTERS(a, b) ((void)0)
+#endif
+#endif
+
 /* v * sigmoid(v); the exponent is clamped so it stays finite (the build assumes finite math to vectorise expf) */
-static inline float silu(float v) { return v / (1.0f + expf(fminf(-v, 80.0f))); }
-
-typedef float vec8 __attribute__((vector_size(32))); /* GCC/Clang vectors: AVX where the CPU has it */
-
-static inline vec8 load8(const float *p) {
-    vec8 v;
-    __builtin_memcpy(&v, p, sizeof v);
-    return v;
-}
-
-static inline void store8(float *p, vec8 v) { __builtin_memcpy(p, &v, sizeof v); }
+static float silu(float v) { return v / (1.0f + expf(fminf(-v, 80.0f))); }
 
 /* out[r][j] = bias[j] + sum_k in[r][k] * weight[k][j], for `rows` rows of `k_count` inputs.
  * Four rows by sixteen outputs are summed in registers over all k, so each weight is loaded
  * once per four rows and nothing is stored until the sums are done (the layers are 128 wide). */
-static void affine(int rows, const float *restrict in, int k_count, const float *restrict weight,
-                   const float *restrict bias, int n, float *restrict out) {
+static void affine(int rows, const float *RESTRICT in, int k_count, const float *RESTRICT weight,
+                   const float *RESTRICT bias, int n, float *RESTRICT out) {
     int r = 0;
-    if (n % 16 == 0) {
+#ifdef VECTORS
+    if (n % (2 * LANES) == 0) {
         for (; r + TILE <= rows; r += TILE) {
             const float *i0 = in + (size_t)r * k_count, *i1 = i0 + k_count, *i2 = i1 + k_count, *i3 = i2 + k_count;
-            for (int j = 0; j < n; j += 16) {
-                const vec8 bias_low = load8(bias + j), bias_high = load8(bias + j + 8);
-                vec8 a0 = bias_low, b0 = bias_high, a1 = bias_low, b1 = bias_high;
-                vec8 a2 = bias_low, b2 = bias_high, a3 = bias_low, b3 = bias_high;
+            for (int j = 0; j < n; j += 2 * LANES) {
+                vec bias_low, bias_high;
+                LOAD(bias_low, bias + j);
+                LOAD(bias_high, bias + j + LANES);
+                vec a0 = bias_low, b0 = bias_high, a1 = bias_low, b1 = bias_high;
+                vec a2 = bias_low, b2 = bias_high, a3 = bias_low, b3 = bias_high;
                 for (int k = 0; k < k_count; k++) {
-                    vec8 low = load8(weight + (size_t)k * n + j), high = load8(weight + (size_t)k * n + j + 8);
-                    /* keep the weights in registers: folded into each multiply-add they were loaded 4 times */
-                    __asm__("" : "+x"(low), "+x"(high));
+                    vec low, high;
+                    LOAD(low, weight + (size_t)k * n + j);
+                    LOAD(high, weight + (size_t)k * n + j + LANES);
+                    KEEP_IN_REGISTERS(low, high);
                     a0 += i0[k] * low;
                     b0 += i0[k] * high;
                     a1 += i1[k] * low;
@@ -65,20 +99,21 @@ static void affine(int rows, const float *restrict in, int k_count, const float 
                     b3 += i3[k] * high;
                 }
                 float *o = out + (size_t)r * n + j;
-                store8(o, a0), store8(o + 8, b0), o += n;
-                store8(o, a1), store8(o + 8, b1), o += n;
-                store8(o, a2), store8(o + 8, b2), o += n;
-                store8(o, a3), store8(o + 8, b3);
+                STORE(o, a0), STORE(o + LANES, b0), o += n;
+                STORE(o, a1), STORE(o + LANES, b1), o += n;
+                STORE(o, a2), STORE(o + LANES, b2), o += n;
+                STORE(o, a3), STORE(o + LANES, b3);
             }
         }
     }
+#endif
     for (; r < rows; r++) {
-        float *restrict o = out + (size_t)r * n;
+        float *RESTRICT o = out + (size_t)r * n;
         const float *i = in + (size_t)r * k_count;
         for (int j = 0; j < n; j++) o[j] = bias[j];
         for (int k = 0; k < k_count; k++) {
             const float a = i[k];
-            const float *restrict w = weight + (size_t)k * n;
+            const float *RESTRICT w = weight + (size_t)k * n;
             for (int j = 0; j < n; j++) o[j] += a * w[j];
         }
     }
@@ -129,7 +164,8 @@ typedef struct {
 
 /* rows first .. first + rows - 1 of the call, through every layer; scratch holds this chunk only */
 static void denoise_chunk(const FilmStep *step, int first, int rows, const float *x, const float *target,
-                          long target_stride, const float *film, long film_stride, long rows_per_condition) {
+                          ptrdiff_t target_stride, const float *film, ptrdiff_t film_stride,
+                          ptrdiff_t rows_per_condition) {
     const int links = step->links, hidden = step->hidden, blocks = step->blocks;
     const float *lengths = step->lengths, *w_in = step->w_in, *b_in = step->b_in, *w_blocks = step->w_blocks;
     const float *b_blocks = step->b_blocks, *w_out = step->w_out, *b_out = step->b_out;
@@ -144,7 +180,7 @@ static void denoise_chunk(const FilmStep *step, int first, int rows, const float
     float *block_output = modulated + (size_t)rows * hidden;    /* (rows, H) */
     float *turn = block_output + (size_t)rows * hidden;         /* (rows, N) */
     float *unit = turn + (size_t)rows * links;                  /* (rows, 2N) */
-    const long scale_offset = (long)blocks * 2 * hidden;
+    const ptrdiff_t scale_offset = (ptrdiff_t)blocks * 2 * hidden;
 
     const float *row_film[CHUNK]; /* each row's condition: rows_per_condition consecutive rows share one */
     for (int r = 0; r < rows; r++) {
@@ -180,10 +216,10 @@ static void denoise_chunk(const FilmStep *step, int first, int rows, const float
 }
 
 /* the rows of one chunk: the caller sizes the scratch by it (film_compiled.py asks, never assumes) */
-int ikdp_film_chunk_rows(void) { return CHUNK; }
+EXPORT int ikdp_film_chunk_rows(void) { return CHUNK; }
 
-int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target, long target_stride,
-                      const float *film, long film_stride, long rows_per_condition) {
+EXPORT int ikdp_film_denoise(const FilmStep *step, const float *x, const float *target, ptrdiff_t target_stride,
+                             const float *film, ptrdiff_t film_stride, ptrdiff_t rows_per_condition) {
     const int rows = step->rows;
     /* a chunk of rows goes through every layer before the next starts: its activations stay in cache */
     for (int first = 0; first < rows; first += CHUNK) {

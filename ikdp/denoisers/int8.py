@@ -4,7 +4,8 @@ Why: on a CPU a batch solve of the Panda's 512 x 4 network (1000 targets x 16 sa
 its time in the residual blocks' 512 x 512 products and the condition network's 512 x 4096 one. With
 the weights in int8 (one scale per output channel) and each input quantized on the fly, fbgemm does
 those products 2.5-3 x faster than float32 on an AVX2 CPU; a layer's output moves by about 2 % of its
-size. What that costs in accuracy is measured, never assumed: docs/BENCHMARKS.md, "Int8 weights".
+size. What that costs in accuracy is measured, never assumed: `python -m benchmarks.few_step --precisions
+float32 int8` (benchmarks/results/few_step_int8_per_row.json); docs/benchmarks.md's fastest CPU pipeline uses it.
 
 Only the layers whose inputs and outputs are both wide are quantized: the input layer (the kinematic
 features, a few dozen wide) and the output (the correction, the sample's precision) stay in float32.

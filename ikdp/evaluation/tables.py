@@ -312,7 +312,7 @@ The noise floor is the MMD^2 between two independent reference sets of the same 
                 f"- **{name}**: excess over the floor {_f(ikdp_excess)} vs DLS from random starts {_f(dls_excess)}: "
                 f"ratio {_f(ratio)}, which **{verdict}** the target (at most 0.1)."
             )
-        parts.append(f"**The issue's target** (relaxed prior, K={entry['samples']}):\n\n" + "\n".join(lines) + "\n")
+        parts.append(f"**The fidelity target** (relaxed prior, K={entry['samples']}):\n\n" + "\n".join(lines) + "\n")
     return "\n".join(parts)
 
 
