@@ -39,6 +39,7 @@ from torch import nn
 
 import ikdp
 from ikdp.denoisers import film_compiled
+from ikdp.evaluation.machine import cpu_model
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 KEEP_C_ABOVE = 1.2  # the C kernel stays only when the fastest torch path takes more than this times its time
@@ -136,16 +137,6 @@ def time_round_robin(methods: dict, rounds: int, calls: int) -> dict[str, float]
     return {name: statistics.median(values) for name, values in seconds.items()}
 
 
-def cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def main(config: FilmStepConfig) -> None:
     torch.set_num_threads(1)
     denoiser = ikdp.load(config.model).model.denoiser
@@ -155,7 +146,7 @@ def main(config: FilmStepConfig) -> None:
 
     cases = [("one target", 1, config.calls[0]), (f"{config.batch} targets", config.batch, config.calls[1])]
     results = []
-    print(f"FiLM denoiser step, model {config.model}, K = {config.samples}, one torch thread, {cpu_name()}")
+    print(f"FiLM denoiser step, model {config.model}, K = {config.samples}, one torch thread, {cpu_model()}")
     capability = torch.backends.cpu.get_cpu_capability()
     print(f"torch {torch.__version__} ({capability}), load average {os.getloadavg()[0]:.1f} at the start\n")
     for case, batch, calls in cases:
@@ -208,7 +199,7 @@ def main(config: FilmStepConfig) -> None:
         "rounds": config.rounds,
         "calls": list(config.calls),
         "threads": 1,
-        "cpu": cpu_name(),
+        "cpu": cpu_model(),
         "machine": platform.machine(),
         "cpu_capability": torch.backends.cpu.get_cpu_capability(),  # the widest vectors torch's kernels use here
         "torch": str(torch.__version__),

@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import platform
 import sys
 import time
 from dataclasses import dataclass, field
@@ -25,6 +24,7 @@ import torch
 import tyro
 
 import ikdp
+from ikdp.evaluation.machine import cpu_model
 from ikdp.refine import damped_least_squares
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tree_seeds.json"
@@ -51,17 +51,6 @@ def solved(arm, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
     if rotation is not None:
         ok = ok & (rotation < arm.rotation_tolerance)
     return ok.any(dim=-1)
-
-
-def cpu_name() -> str:
-    """The CPU's model name where the system says it (Linux), else the machine type."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def main(config: TreeSeedsConfig) -> dict:
@@ -104,7 +93,7 @@ def main(config: TreeSeedsConfig) -> dict:
         "sampling_seconds": sampling_seconds,
         "rows": rows,
         "command": " ".join(sys.argv),
-        "machine": f"{cpu_name()}, {config.threads} thread(s), load average {os.getloadavg()[0]:.1f}",
+        "machine": f"{cpu_model()}, {config.threads} thread(s), load average {os.getloadavg()[0]:.1f}",
     }
     print(f"{arm!r}: {config.targets} held-out targets, K = {config.num_samples}")
     print(f"raw K=1, worse hand: median {result['raw_k1_worse_hand_median_mm']:.1f} mm")
