@@ -250,8 +250,11 @@ def toggle_lock(ui: Page, rng, robot: bool) -> str:
         .find(e => e.childElementCount === 0 && e.textContent.trim().startsWith('lock '));
         return label && label.checkVisibility() ? label.textContent.trim() : null; }"""
     if ui.page.evaluate(find) is None:
-        ui.click("Constraints")  # the folder opens
-    label = ui.page.evaluate(find)
+        ui.click("Constraints")  # the folder opens, drawn over a few frames
+    deadline = time.monotonic() + 10
+    while (label := ui.page.evaluate(find)) is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert label is not None, "no 'lock ...' control shown in the opened Constraints folder"
     box = ui.control(label).first
     box.scroll_into_view_if_needed()
     if box.is_checked():

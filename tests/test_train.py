@@ -91,7 +91,8 @@ def test_help_shows_each_option_once_with_its_default():
     expected = ["--" + field.name.replace("_", "-") for field in fields(TrainConfig)]
     assert sorted(options) == sorted(expected)
     assert "--joints INT" in result.stdout and "--no-resume" in result.stdout
-    assert result.stdout.count("(default:") == len(fields(TrainConfig))
+    # a repeatable option (--ee-link) says so in place of a default
+    assert result.stdout.count("(default:") + result.stdout.count("(repeatable)") == len(fields(TrainConfig))
 
 
 def test_resume_reads_the_training_config_from_the_checkpoint(tmp_path):
