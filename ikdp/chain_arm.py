@@ -27,7 +27,7 @@ import torch
 
 from ikdp.arm_inputs import drawing_device, validate_target_rows
 from ikdp.fused_chain import FusedChain
-from ikdp.kinematics import wrap_angle
+from ikdp.joint_limits import JointLimits
 from ikdp.refine import damped_least_squares
 from ikdp.robot_data import installed_copy
 from ikdp.rotations import (
@@ -62,7 +62,7 @@ def origin_matrix(origin: Origin) -> list[list[float]]:
     return matrix.tolist()
 
 
-class ChainArm:
+class ChainArm(JointLimits):
     """A serial chain of revolute, continuous and prismatic joints; targets are positions or poses."""
 
     kind = "chain"
@@ -527,24 +527,6 @@ class ChainArm:
             return position
         rotation = quaternion_to_matrix(targets[..., 3:7])
         return torch.cat([position, rotation[..., :, 0], rotation[..., :, 1]], dim=-1)
-
-    def normalize_joints(self, joints: torch.Tensor) -> torch.Tensor:
-        """Back into range after a step: limited joints clamp to their limits, continuous ones wrap into (-pi, pi]."""
-        c = self._constants_like(joints)
-        clamped = torch.minimum(torch.maximum(joints, c["limits"][:, 0]), c["limits"][:, 1])
-        return torch.where(c["continuous"], wrap_angle(joints), clamped)
-
-    def blocked_by_limits(self, joints: torch.Tensor, step: torch.Tensor) -> torch.Tensor:
-        """(..., J) joints, a proposed step -> (..., J) True where a joint on a limit is pushed further out."""
-        c = self._constants_like(joints)
-        pushed_out = ((joints <= c["limits"][:, 0]) & (step < 0)) | ((joints >= c["limits"][:, 1]) & (step > 0))
-        return pushed_out & ~c["continuous"]
-
-    def limit_violations(self, joints: torch.Tensor, *, tolerance: float = 1e-6) -> torch.Tensor:
-        """(..., J) -> (...) how many joints lie outside their limits (continuous joints never do)."""
-        c = self._constants_like(joints)
-        outside = (joints < c["limits"][:, 0] - tolerance) | (joints > c["limits"][:, 1] + tolerance)
-        return (outside & ~c["continuous"]).sum(dim=-1)
 
     # --- targets -------------------------------------------------------------------------------
     def validate_targets(self, targets) -> torch.Tensor:

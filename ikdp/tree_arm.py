@@ -28,13 +28,13 @@ import torch
 
 from ikdp.arm_inputs import drawing_device, validate_target_rows
 from ikdp.chain_arm import QUATERNION_TOLERANCE, TARGET_KINDS, ChainArm
-from ikdp.kinematics import wrap_angle
+from ikdp.joint_limits import JointLimits
 from ikdp.refine import damped_least_squares
 from ikdp.rotations import matrix_to_quaternion, quaternion_to_matrix
 from ikdp.urdf import read_chain
 
 
-class TreeArm:
+class TreeArm(JointLimits):
     """Several end effectors on one base: the movable joints of every base-to-end-effector path, each once."""
 
     kind = "tree"
@@ -348,25 +348,6 @@ class TreeArm:
             return positions
         rotations = quaternion_to_matrix(targets[..., 3 * count :].unflatten(-1, (count, 4)))  # (..., E, 3, 3)
         return torch.cat([positions, rotations[..., :, 0].flatten(-2), rotations[..., :, 1].flatten(-2)], dim=-1)
-
-    # --- limits --------------------------------------------------------------------------------
-    def normalize_joints(self, joints: torch.Tensor) -> torch.Tensor:
-        """Limited joints clamp to their limits, continuous ones wrap into (-pi, pi]."""
-        c = self._constants_like(joints)
-        clamped = torch.minimum(torch.maximum(joints, c["limits"][:, 0]), c["limits"][:, 1])
-        return torch.where(c["continuous"], wrap_angle(joints), clamped)
-
-    def blocked_by_limits(self, joints: torch.Tensor, step: torch.Tensor) -> torch.Tensor:
-        """(..., J) True where a joint on a limit is pushed further out by `step`."""
-        c = self._constants_like(joints)
-        pushed_out = ((joints <= c["limits"][:, 0]) & (step < 0)) | ((joints >= c["limits"][:, 1]) & (step > 0))
-        return pushed_out & ~c["continuous"]
-
-    def limit_violations(self, joints: torch.Tensor, *, tolerance: float = 1e-6) -> torch.Tensor:
-        """(..., J) -> (...) how many joints lie outside their limits."""
-        c = self._constants_like(joints)
-        outside = (joints < c["limits"][:, 0] - tolerance) | (joints > c["limits"][:, 1] + tolerance)
-        return (outside & ~c["continuous"]).sum(dim=-1)
 
     # --- targets -------------------------------------------------------------------------------
     def validate_targets(self, targets) -> torch.Tensor:
