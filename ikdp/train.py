@@ -107,6 +107,10 @@ def with_arm_defaults(config: TrainConfig) -> TrainConfig:
     chosen = {name: getattr(recipe, name) for name in RECIPE_FIELDS if getattr(config, name) is None}
     if config.steps is None and config.minutes > 0:
         chosen["steps"] = NO_STEP_LIMIT
+    for name in ("dls_skip", "limit_aware_step"):
+        # the robot recipe's film-only parts stay off for another denoiser the user picked; asked for, they still fail
+        if name in chosen and config.denoiser != "film":
+            chosen[name] = False
     return replace(config, **chosen)
 
 

@@ -14,7 +14,7 @@ import torch
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.priors import PosePrior, load_pose_file, make_prior
-from ikdp.train import TrainConfig, parse_config, train, with_arm_defaults
+from ikdp.train import TrainConfig, parse_config, train, validate, with_arm_defaults
 from ikdp.train_budget import TrainingBudget
 from ikdp.train_recipes import RECIPE_FIELDS
 
@@ -184,6 +184,16 @@ def test_options_left_out_come_from_the_arms_recipe():
     assert with_arm_defaults(TrainConfig(minutes=5.0)).steps > 10**9  # the clock alone ends it
     filled = with_arm_defaults(TrainConfig(robot="spatial2"))
     assert all(getattr(filled, name) is not None for name in RECIPE_FIELDS)
+
+
+def test_a_robot_with_another_denoiser_leaves_the_film_only_recipe_parts_off(tmp_path):
+    places = {"output": str(tmp_path / "model.pt"), "log_dir": str(tmp_path / "runs")}
+    plain = with_arm_defaults(TrainConfig(robot="spatial2", denoiser="mlp", **places))
+    assert (plain.dls_skip, plain.limit_aware_step) == (False, False)
+    validate(plain)  # the recipe alone never makes a config that cannot train
+    asked = with_arm_defaults(TrainConfig(robot="spatial2", denoiser="mlp", dls_skip=True, **places))
+    with pytest.raises(ValueError, match="^dls_skip: goes with a robot"):
+        validate(asked)
 
 
 def test_the_checkpoint_records_every_value_used_and_the_recipe(tmp_path):
