@@ -204,11 +204,11 @@ class Solver:
         restarted = None
         if restart_steps and not result.stopped:
             angles, restarted = restart_unreached(kinematics, angles, goals, restart_steps, generator, bound)
-        error, rotation_error = kinematics.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
-        raw_error = error if angles is raw else kinematics.tip_error(raw, per_sample_targets)
-        by_effector = arm.errors_by_effector(angles, per_sample_targets)  # a tree's, each (B, K, E); else None
-        if bound is not None and bound.partial is not None:
-            rotation_error = bound.partial.rotation_error(angles, per_sample_targets)
+        measure = kinematics if bound is None or bound.partial is None else bound.partial  # partial: the parts asked
+        error, rotation_error = measure.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
+        raw_error = error if angles is raw else measure.tip_and_rotation_errors(raw, per_sample_targets)[0]
+        # a tree's, each (B, K, E); else None
+        by_effector = (arm if measure is kinematics else measure).errors_by_effector(angles, per_sample_targets)
         states, estimates = result.states, result.estimates
         if per_target == 1:  # (S, B * K, 1, J) -> (S, B, K, J)
             states = None if states is None else states.reshape(states.shape[0], batch, num_samples, -1)
