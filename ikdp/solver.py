@@ -16,7 +16,7 @@ from ikdp.constraint_base import Constraint
 from ikdp.denoisers.int8 import Int8Weights, int8_available
 from ikdp.device import available_bytes, checked_device
 from ikdp.fused_chain import small_batch
-from ikdp.guidance import ConstraintSet
+from ikdp.guidance import ConstraintSet, checked
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
 from ikdp.restarts import restart_unreached
@@ -151,6 +151,7 @@ class Solver:
                 constraints=constraints,
             )
         arm = self.arm
+        constraints = arm.with_default_constraints(checked(constraints))  # a tree: its self-collision check
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
         spacing = self.default_spacing(sampler, steps) if spacing is None else spacing
         self.check_options(len(targets), num_samples, sampler, steps, spacing, refine_steps, generator, initial_noise)

@@ -1,4 +1,5 @@
-"""A small tree for tests: a waist shared by two short arms, and an untrained solver for it."""
+"""Small trees for tests: a waist shared by two short arms (with and without collision bodies), and an untrained
+solver for one."""
 
 import torch
 
@@ -51,3 +52,26 @@ def untrained_solver(arm: TreeArm) -> Solver:
         arm=arm.to_config(),
     )
     return Solver(IKDiffusion(config), PosePrior("uniform"), {})
+
+
+# the same shape with bodies: a torso box, two forearm boxes and two round hands that swing in one horizontal
+# plane, through the torso and through each other
+BODIES_URDF = """<robot name="two_arms_bodies">
+  <link name="base"/>
+  <link name="torso">
+    <collision><origin xyz="0 0 0.25"/><geometry><box size="0.12 0.2 0.3"/></geometry></collision></link>
+  <link name="l1"><collision><origin xyz="0.1 0 0"/><geometry><box size="0.2 0.04 0.04"/></geometry></collision></link>
+  <link name="left_hand"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+  <link name="r1"><collision><origin xyz="0.1 0 0"/><geometry><box size="0.2 0.04 0.04"/></geometry></collision></link>
+  <link name="right_hand"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
+  <joint name="waist" type="revolute"><parent link="base"/><child link="torso"/>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/></joint>
+  <joint name="left_shoulder" type="revolute"><parent link="torso"/><child link="l1"/>
+    <origin xyz="0 0.16 0.35"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+  <joint name="left_elbow" type="revolute"><parent link="l1"/><child link="left_hand"/>
+    <origin xyz="0.22 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+  <joint name="right_shoulder" type="revolute"><parent link="torso"/><child link="r1"/>
+    <origin xyz="0 -0.16 0.35"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+  <joint name="right_elbow" type="revolute"><parent link="r1"/><child link="right_hand"/>
+    <origin xyz="0.22 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+</robot>"""
