@@ -66,6 +66,28 @@ def test_g1_forward_kinematics_matches_pytorch_kinematics(g1, monkeypatch):
         torch.testing.assert_close(rotation[:, effector], reference[:, :3, :3], atol=1e-9, rtol=0)
 
 
+def test_g1_forward_kinematics_matches_pinocchio(g1):
+    """Pinocchio, a trusted reference (benchmarks/requirements-bench.txt), on the URDF with every joint off the
+    tree held at zero: both hands' placements agree to 1e-9."""
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(str(example_robot_data_file(G1_URDF)))
+    data = model.createData()
+    slots = [model.joints[model.getJointId(name)].idx_q for name in g1.joint_names]
+    frames = [model.getFrameId(hand) for hand in G1_HANDS]
+    joints = poses(g1, 64, seed=4)
+    rotation, position = g1.end_effector_frame(joints)  # (B, E, 3, 3), (B, E, 3)
+    for row in range(len(joints)):
+        q = pin.neutral(model)
+        q[slots] = joints[row].numpy()
+        pin.framesForwardKinematics(model, data, q)
+        for effector, frame in enumerate(frames):
+            placement = data.oMf[frame]
+            torch.testing.assert_close(
+                position[row, effector], torch.from_numpy(placement.translation), atol=1e-9, rtol=0
+            )
+            torch.testing.assert_close(rotation[row, effector], torch.from_numpy(placement.rotation), atol=1e-9, rtol=0)
+
+
 @pytest.mark.parametrize("target", ["pose", "position"])
 def test_the_stacked_jacobian_matches_autograd(g1, target):
     """Position rows: d position / d q; rotation rows: the angular velocity, vee(dR/dq R^T); every position's
@@ -216,3 +238,23 @@ def test_locks_a_pose_to_stay_near_restarts_and_tracking_work_on_a_tree():
     path = arm.stacked_targets(arm.end_effector(joints[:1] + torch.linspace(0, 0.2, 4)[:, None]))  # (P, E, 7)
     tracked = solver.track(path, joints[0], num_samples=3)
     assert tracked.angles.shape == (4, 6) and bool(tracked.reached.all())
+
+
+def test_the_pinocchio_clik_baseline_reaches_both_hands_from_nearby(g1):
+    """The benchmark's Pinocchio row (benchmarks/pinocchio_clik.py) is a working solver: from 0.1 rad off, 20 steps
+    put both hands within 1 mm and 1 degree, as IKDP's own DLS does (test_refinement_reaches_both_hands_...)."""
+    pytest.importorskip("pinocchio")
+    from benchmarks.pinocchio_clik import PinocchioTree
+
+    reference = PinocchioTree(g1, example_robot_data_file(G1_URDF))
+    joints = poses(g1, 16, seed=2)
+    start = g1.normalize_joints(joints + 0.1 * torch.randn(joints.shape, generator=torch.Generator().manual_seed(3)))
+    solved = torch.stack(
+        [
+            torch.from_numpy(reference.clik(start[row].numpy(), reference.forward(joints[row].numpy()), 20))
+            for row in range(len(joints))
+        ]
+    )
+    position, rotation = g1.tip_and_rotation_errors(solved, g1.end_effector(joints))
+    assert float(((position < 1e-3) & (rotation < math.radians(1))).float().mean()) > 0.9
+    assert int(g1.limit_violations(solved).sum()) == 0
