@@ -68,9 +68,12 @@ class BoundSelfCollision(BoundConstraint):
     weight: float
 
     def __post_init__(self):
-        count = len(self.spheres)
-        self.checked = torch.zeros(count, count, dtype=torch.bool)  # (S, S) each checked pair once, upper triangle
-        self.checked[self.pairs[:, 0], self.pairs[:, 1]] = True
+        # the pairs as a block: the spheres that come first in some pair against those that come second (27 x 68
+        # on the G1's hands, of 76 x 76), so one batched distance product covers every pair
+        self.first, first = self.pairs[:, 0].unique(return_inverse=True)
+        self.second, second = self.pairs[:, 1].unique(return_inverse=True)
+        self.checked = torch.zeros(len(self.first), len(self.second), dtype=torch.bool)  # (F, T)
+        self.checked[first, second] = True
         self.moving = self.arm.joints_moving(self.spheres.link_indices)  # (S, J)
         self.revolute = torch.tensor([kind != "prismatic" for kind in self.arm.joint_types])
         self._like: dict = {}
@@ -79,19 +82,22 @@ class BoundSelfCollision(BoundConstraint):
         key = (like.dtype, like.device)
         if key not in self._like:
             radii = self.spheres.radii_like(like)
+            first, second = self.first.to(like.device), self.second.to(like.device)
             self._like[key] = {
+                "first": first,
+                "second": second,
                 "checked": self.checked.to(device=like.device, dtype=like.dtype),
-                "reach": radii[:, None] + radii[None, :],  # (S, S) the distance at contact
+                "reach": radii[first][:, None] + radii[second][None, :],  # (F, T) the distance at contact
                 "moving": self.moving.to(device=like.device, dtype=like.dtype),
                 "revolute": self.revolute.to(like.device),
             }
         return self._like[key]
 
     def _overlaps(self, centers: torch.Tensor, clearance: float) -> tuple[torch.Tensor, torch.Tensor]:
-        """centers (M, S, 3) -> each checked pair's overlap (M, S, S), zero elsewhere, and the distances."""
+        """centers (M, S, 3) -> each checked pair's overlap (M, F, T), zero elsewhere, and the distances."""
         constants = self._constants(centers)
         # every pair's distance at once: one batched product, where gathering the P checked pairs cost 2x more
-        distance = torch.cdist(centers, centers)
+        distance = torch.cdist(centers[:, constants["first"]], centers[:, constants["second"]])
         return torch.relu(constants["reach"] + clearance - distance) * constants["checked"], distance
 
     def penetration(self, joints: torch.Tensor, clearance: float = 0.0) -> torch.Tensor:
@@ -109,11 +115,15 @@ class BoundSelfCollision(BoundConstraint):
         constants = self._constants(joints)
         centers = self.spheres.world_centers(self.arm, joints)  # (M, S, 3)
         overlap, distance = self._overlaps(centers, clearance)
-        pushing = (overlap > 0).to(joints.dtype)
-        pushing = pushing + pushing.transpose(-1, -2)  # (M, S, S) symmetric: each pair pushes both spheres
-        weights = pushing / distance.clamp_min(1e-12)
-        # g_s = -sum_t w_st (c_s - c_t), as products rather than the (M, S, S, 3) differences
-        per_sphere = weights @ centers - weights.sum(dim=-1, keepdim=True) * centers  # (M, S, 3)
+        weights = (overlap > 0).to(joints.dtype) / distance.clamp_min(1e-12)  # (M, F, T)
+        first, second = centers[:, constants["first"]], centers[:, constants["second"]]
+        # g = -sum w (c_s - c_other) for each sphere of a pair, as products rather than (M, F, T, 3) differences
+        per_sphere = torch.zeros_like(centers)
+        per_sphere.index_add_(1, constants["first"], weights @ second - weights.sum(-1, keepdim=True) * first)
+        turned_weights = weights.transpose(-1, -2)
+        per_sphere.index_add_(
+            1, constants["second"], turned_weights @ first - turned_weights.sum(-1, keepdim=True) * second
+        )
         moving = constants["moving"]  # (S, J)
         pulled = torch.einsum("msk,sj->mjk", per_sphere, moving)  # (M, J, 3) sum_s g_s
         turned = torch.einsum("msk,sj->mjk", torch.linalg.cross(centers, per_sphere, dim=-1), moving)

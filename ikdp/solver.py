@@ -262,7 +262,8 @@ class Solver:
         """This solve for `batch` targets as one CUDA graph (a solver on a GPU; ikdp/cuda_graph.py):
         `captured = solver.capture(1000, num_samples=16, sampler="ddim", steps=1, refine_steps=8)`, then
         `captured(targets, seed=0)` replays it from one launch. `options`: solve's num_samples, sampler, steps,
-        spacing, refine_steps and restart_steps (constraints, callbacks and trajectories stay eager); `fused=True`
+        spacing, refine_steps and restart_steps (constraints, a tree's self-collision check among them, callbacks and
+        trajectories stay eager); `fused=True`
         compiles each refinement step first (torch.compile; Triton)."""
         from ikdp.cuda_graph import CapturedSolve  # CUDA-only machinery, loaded when asked for
 
