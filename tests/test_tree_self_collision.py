@@ -114,3 +114,19 @@ def test_self_collision_is_refused_on_a_chain():
         ikdp.load("ikdp_z1").solve(
             torch.zeros(1, 7) + torch.tensor([0.3, 0, 0.3, 1, 0, 0, 0]), constraints=[ikdp.SelfCollision()]
         )
+
+
+@pytest.mark.slow  # fits the G1's sphere cover from its meshes on a fresh cache (about 15 s)
+def test_the_g1s_hands_can_meet_the_torso_and_each_other_but_not_the_shoulder_its_torso():
+    from ikdp.robot_data import example_robot_data_file
+
+    urdf = example_robot_data_file("g1_description/urdf/g1_29dof_rev_1_0.urdf")
+    g1 = TreeArm.from_urdf(urdf, ["left_rubber_hand", "right_rubber_hand"], base_link="pelvis")
+    bound = ikdp.SelfCollision().bind(g1, 1, 1)
+    pairs = link_pairs(g1, bound)
+    assert ("left_wrist_yaw_link", "right_wrist_yaw_link") in pairs  # the hands through each other
+    assert ("left_elbow_link", "torso_link") in pairs and ("right_wrist_pitch_link", "torso_link") in pairs
+    assert ("left_shoulder_pitch_link", "torso_link") not in pairs  # adjacent
+    assert not any(a.startswith("left") and b.startswith("left") for a, b in pairs)  # one arm's links never pair
+    rest = torch.zeros(1, g1.num_joints)
+    assert float(bound.violation(rest)) == 0  # the zero pose is free of overlap by construction
