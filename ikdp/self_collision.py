@@ -72,7 +72,7 @@ class BoundSelfCollision(BoundConstraint):
         # on the G1's hands, of 76 x 76), so one batched distance product covers every pair
         self.first, first = self.pairs[:, 0].unique(return_inverse=True)
         self.second, second = self.pairs[:, 1].unique(return_inverse=True)
-        self.checked = torch.zeros(len(self.first), len(self.second), dtype=torch.bool)  # (F, T)
+        self.checked = torch.zeros(len(self.first), len(self.second), dtype=torch.bool)  # (F, T) the pairs
         self.checked[first, second] = True
         self.moving = self.arm.joints_moving(self.spheres.link_indices)  # (S, J)
         self.revolute = torch.tensor([kind != "prismatic" for kind in self.arm.joint_types])
@@ -83,11 +83,14 @@ class BoundSelfCollision(BoundConstraint):
         if key not in self._like:
             radii = self.spheres.radii_like(like)
             first, second = self.first.to(like.device), self.second.to(like.device)
+            reach = radii[first][:, None] + radii[second][None, :]  # (F, T) the distance at contact
             self._like[key] = {
                 "first": first,
                 "second": second,
-                "checked": self.checked.to(device=like.device, dtype=like.dtype),
-                "reach": radii[first][:, None] + radii[second][None, :],  # (F, T) the distance at contact
+                # a pair not checked never reaches: its overlap is zero without a mask to multiply by
+                "reach": torch.where(self.checked.to(like.device), reach, torch.full_like(reach, -1e9)),
+                "links": torch.tensor(self.spheres.link_indices, device=like.device),
+                "centers": torch.tensor(self.spheres.centers, dtype=like.dtype, device=like.device),  # (S, 3)
                 "moving": self.moving.to(device=like.device, dtype=like.dtype),
                 "revolute": self.revolute.to(like.device),
             }
@@ -98,11 +101,18 @@ class BoundSelfCollision(BoundConstraint):
         constants = self._constants(centers)
         # every pair's distance at once: one batched product, where gathering the P checked pairs cost 2x more
         distance = torch.cdist(centers[:, constants["first"]], centers[:, constants["second"]])
-        return torch.relu(constants["reach"] + clearance - distance) * constants["checked"], distance
+        return torch.relu(constants["reach"] + clearance - distance), distance
+
+    def _world_centers(self, joints: torch.Tensor) -> torch.Tensor:
+        """joints (M, J) -> the sphere centres in the base frame (M, S, 3): LinkSpheres.world_centers, its
+        constants made once."""
+        constants = self._constants(joints)
+        poses = self.arm.link_poses(joints)[:, constants["links"]]  # (M, S, 4, 4)
+        return (poses[..., :3, :3] @ constants["centers"][..., None])[..., 0] + poses[..., :3, 3]
 
     def penetration(self, joints: torch.Tensor, clearance: float = 0.0) -> torch.Tensor:
         """joints (M, J) -> (M,) the summed overlap of the checked sphere pairs, + `clearance`."""
-        return self._overlaps(self.spheres.world_centers(self.arm, joints), clearance)[0].sum(dim=(-1, -2))
+        return self._overlaps(self._world_centers(joints), clearance)[0].sum(dim=(-1, -2))
 
     def penetration_and_gradient(self, joints: torch.Tensor, clearance: float) -> tuple[torch.Tensor, torch.Tensor]:
         """(M,) overlap and its gradient (M, J) in closed form, as a chain's obstacle depth (ikdp/obstacles.py).
@@ -113,9 +123,9 @@ class BoundSelfCollision(BoundConstraint):
         (Autograd through the pair distances took several times longer.)
         """
         constants = self._constants(joints)
-        centers = self.spheres.world_centers(self.arm, joints)  # (M, S, 3)
+        centers = self._world_centers(joints)  # (M, S, 3)
         overlap, distance = self._overlaps(centers, clearance)
-        weights = (overlap > 0).to(joints.dtype) / distance.clamp_min(1e-12)  # (M, F, T)
+        weights = torch.where(overlap > 0, distance.clamp_min(1e-12).reciprocal(), 0.0)  # (M, F, T)
         first, second = centers[:, constants["first"]], centers[:, constants["second"]]
         # g = -sum w (c_s - c_other) for each sphere of a pair, as products rather than (M, F, T, 3) differences
         per_sphere = torch.zeros_like(centers)
