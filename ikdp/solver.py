@@ -126,7 +126,8 @@ class Solver:
         terms. None draws it from `generator` (as the first thing drawn).
         `constraints` (ikdp.constraint_names(): locked joints, a pose to stay near, obstacles,
         partial targets) bend the reverse process toward them and are kept by the refinement;
-        `constraint_violation` then says where they hold (docs/library.md, "Constraints").
+        `constraint_violation` then says where they hold (docs/library.md, "Constraints"). A tree whose
+        links can meet keeps its branches apart unless given `ikdp.SelfCollision(enabled=False)`.
         `restart_steps`: a numerical fallback. The targets none of whose K refined poses is within the arm's
         tolerances (1 mm and 1 degree on a robot) get K fresh uniform starts within the limits, refined that
         many DLS steps (ikdp/restarts.py); `restarted` (B,) says which. With constraints, reaching also means
