@@ -145,8 +145,16 @@ class BoundSelfCollision(BoundConstraint):
         return overlap.sum(dim=(-1, -2)), gradient
 
     def guide(self, joints):
-        depth, gradient = self.penetration_and_gradient(joints, self.clearance)
-        return clearing_step(self.arm, joints, depth, gradient, self.weight)
+        """The obstacles' clearing step (ikdp.obstacles.clearing_step), worked out only for the rows that overlap:
+        a quarter to a half of a solve's x̂0, and the gradient costs more than finding them."""
+        depth = self.penetration(joints, self.clearance)
+        rows = torch.nonzero(depth > 0)[:, 0]
+        step = torch.zeros_like(joints)
+        if len(rows):
+            overlapping = joints[rows]
+            depth, gradient = self.penetration_and_gradient(overlapping, self.clearance)
+            step[rows] = clearing_step(self.arm, overlapping, depth, gradient, self.weight)
+        return step
 
     def penetration_rows(self, joints):
         depth, gradient = self.penetration_and_gradient(joints, self.clearance / 2)
