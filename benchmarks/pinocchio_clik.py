@@ -5,7 +5,8 @@ joints are the tree's; `forward` places the end-effector frames, and `clik` is P
 kinematics on the stacked task of every end effector, as its documentation's example writes it: the error of
 each hand is log6 of the frame's placement seen from the target's, its Jacobian the frame's LOCAL one mapped
 by Jlog6, and one damped least-squares step v = -J^T (J J^T + lambda^2 I)^-1 e, integrated in full and put
-back within the limits. Poses go in and out in the tree's joint order (`TreeArm.joint_names`).
+back within the limits (a position model: each hand's position miss and its world-aligned linear rows). Poses
+go in and out in the tree's joint order (`TreeArm.joint_names`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ class PinocchioTree:
 
         self.pin = pin
         self.version = pin.__version__
+        self.position_only = arm.target == "position"  # a position model's targets: each hand's position alone
         full = pin.buildModelFromUrdf(str(urdf_path))  # fixed at the URDF's root: the base link of the tree
         root = full.frames[1].name if len(full.frames) > 1 else None
         if arm.base_link != root:
@@ -56,6 +58,11 @@ class PinocchioTree:
             pin.updateFramePlacements(self.model, self.data)
             errors, jacobians = [], []
             for frame, goal in zip(self.frames, goals, strict=True):
+                if self.position_only:  # the hand's position alone: its miss and the world-aligned linear rows
+                    errors.append(self.data.oMf[frame].translation - goal.translation)
+                    aligned = pin.getFrameJacobian(self.model, self.data, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+                    jacobians.append(aligned[:3])
+                    continue
                 seen = goal.actInv(self.data.oMf[frame])  # the hand in the target's frame
                 errors.append(pin.log6(seen).vector)
                 local = pin.getFrameJacobian(self.model, self.data, frame, pin.ReferenceFrame.LOCAL)

@@ -76,7 +76,9 @@ def main(config: TreeSelfCollisionConfig) -> dict:
     for name, out in outs.items():
         overlap = check.violation(out.angles.reshape(-1, arm.num_joints)).reshape(out.angles.shape[:2]) > 0
         raw_overlap = check.violation(out.raw_angles.reshape(-1, arm.num_joints)).reshape(overlap.shape) > 0
-        within = (out.tip_error < arm.position_tolerance) & (out.rotation_error < arm.rotation_tolerance)
+        within = out.tip_error < arm.position_tolerance
+        if out.rotation_error is not None:  # a pose model
+            within &= out.rotation_error < arm.rotation_tolerance
         rows.append(
             {
                 "setting": name,

@@ -65,13 +65,13 @@ BODIES_URDF = """<robot name="two_arms_bodies">
   <link name="r1"><collision><origin xyz="0.1 0 0"/><geometry><box size="0.2 0.04 0.04"/></geometry></collision></link>
   <link name="right_hand"><collision><geometry><sphere radius="0.03"/></geometry></collision></link>
   <joint name="waist" type="revolute"><parent link="base"/><child link="torso"/>
-    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/></joint>
+    <origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
   <joint name="left_shoulder" type="revolute"><parent link="torso"/><child link="l1"/>
-    <origin xyz="0 0.16 0.35"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+    <origin xyz="0 0.16 0.35"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="10" velocity="1"/></joint>
   <joint name="left_elbow" type="revolute"><parent link="l1"/><child link="left_hand"/>
-    <origin xyz="0.22 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+    <origin xyz="0.22 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="10" velocity="1"/></joint>
   <joint name="right_shoulder" type="revolute"><parent link="torso"/><child link="r1"/>
-    <origin xyz="0 -0.16 0.35"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+    <origin xyz="0 -0.16 0.35"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="10" velocity="1"/></joint>
   <joint name="right_elbow" type="revolute"><parent link="r1"/><child link="right_hand"/>
-    <origin xyz="0.22 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5"/></joint>
+    <origin xyz="0.22 0 0"/><axis xyz="0 0 1"/><limit lower="-2.5" upper="2.5" effort="10" velocity="1"/></joint>
 </robot>"""
