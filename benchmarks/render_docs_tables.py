@@ -50,6 +50,8 @@ def machine(data: dict) -> str:
     if "gpu" in data:
         return f"{data['gpu']}, torch {data['torch']}"
     found = data.get("machine") or data.get("environment") or {}
+    if isinstance(found, str) and "thread" in found:  # a script that names the CPU and its threads itself
+        return found
     if isinstance(found, str):  # the oldest scripts wrote only the architecture
         return f"{found}, {data.get('threads', '?')} torch thread(s), torch {data.get('torch', '?')}"
     cpu = found.get("cpu") or found.get("cpu_model") or found.get("platform", "?")
@@ -292,6 +294,39 @@ def chain_fk(data: dict):
     return header, [[r["method"], number(r["median_ms"]), number(r["speedup"], 1)] for r in data["rows"]]
 
 
+def tree_seeds(data: dict):
+    """benchmarks/tree_seeds.py: per DLS budget, the share solved from each kind of start, in one run."""
+    names = {
+        "ikdp": "IKDP samples + DLS",
+        "uniform": "uniform random starts + DLS",
+        "pinocchio_clik": "Pinocchio CLIK from the same uniform starts",
+    }
+    header = [f"starts (K = {data['num_samples']} per target)", "steps", "solved (every hand 1 mm, 1°)", "refine (s)"]
+    rows = [
+        [names[r["seeds"]], str(r["dls_steps"]), percent(r["solved"]), number(r["refine_seconds"], 2)]
+        for r in data["rows"]
+    ]
+    return header, rows
+
+
+def tree_self_collision(data: dict):
+    """benchmarks/tree_self_collision.py: the same targets solved with the self-collision check and without."""
+    names = {"self_collision_on": "on (the default)", "self_collision_off": "off, `SelfCollision(enabled=False)`"}
+    header = ["self-collision check", "poses in self-collision", "raw samples in it", "solved, apart", "solved", "s"]
+    rows = [
+        [
+            names[r["setting"]],
+            percent(r["poses_in_self_collision"]),
+            percent(r["raw_samples_in_self_collision"]),
+            percent(r["solved_free_of_collision"]),
+            percent(r["solved_any"]),
+            number(r["median_seconds"], 1),
+        ]
+        for r in data["rows"]
+    ]
+    return header, rows
+
+
 def viz_frames(data: dict):
     header = ["samples K", "frames/s while the denoising plays", "frames/s standing still"]
     rows = [[str(r["samples"]), number(r["animating_fps"]), number(r["still_fps"])] for r in data["rows"]]
@@ -437,6 +472,20 @@ TABLES = {
     "planar_goals": Table("solver.json", "python -m benchmarks.solver_benchmark", planar_goals),
     "chain_fk": Table("chain_fk.json", "python benchmarks/chain_fk.py", chain_fk),
     "viz_frames": Table("viz_frames.json", "python benchmarks/viz_frames.py", viz_frames),
+    "tree_seeds_pinocchio": Table(
+        "tree_seeds_g1_8min_pinocchio.json",
+        "python -m benchmarks.tree_seeds --checkpoint g1_hands_8min.pt --targets 500",
+        tree_seeds,
+        "500 held-out G1 targets (both hands' poses from poses uniform within the limits); the model trained "
+        "`--minutes 8` on one CPU thread. Every row scored by the same rule through the same kinematics.",
+    ),
+    "tree_self_collision": Table(
+        "tree_self_collision_g1_8min.json",
+        "python -m benchmarks.tree_self_collision --checkpoint g1_hands_8min.pt --targets 200",
+        tree_self_collision,
+        "200 G1 targets from poses free of self-collision, K = 16 + 5 DLS steps, DDPM; solved: a pose with both "
+        "hands within 1 mm and 1° (apart: and no overlap); s: the median wall time of 3 alternating rounds.",
+    ),
     "viz_page_latency": Table(
         "viz_page_latency.json",
         "python -m benchmarks.viz_page_latency",

@@ -9,6 +9,7 @@ from ikdp.constraints import (
     NearPose,
     Obstacles,
     PositionOnly,
+    SelfCollision,
     constraint_names,
     make_constraint,
 )
@@ -33,6 +34,7 @@ __all__ = [
     "Obstacles",
     "PositionOnly",
     "PlanarArm",
+    "SelfCollision",
     "SolveResult",
     "Solver",
     "absolute_to_relative",

@@ -152,6 +152,10 @@ class PlanarArm:
         """`refine.damped_least_squares` on this arm."""
         return damped_least_squares(self, headings, targets, steps=steps, task=task)
 
+    def with_default_constraints(self, constraints) -> list:
+        """The constraints a solve runs: those given (a tree adds its self-collision check)."""
+        return list(constraints)
+
     def errors_by_effector(self, headings: torch.Tensor, targets: torch.Tensor) -> None:
         """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""
         return None

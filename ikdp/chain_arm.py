@@ -512,6 +512,10 @@ class ChainArm(JointLimits):
         relative = quaternion_multiply(targets[..., 3:7].double(), quaternion_conjugate(matrix_to_quaternion(rotation)))
         return position_error, quaternion_angle(relative).float()
 
+    def with_default_constraints(self, constraints) -> list:
+        """The constraints a solve runs: those given (a tree adds its self-collision check)."""
+        return list(constraints)
+
     def errors_by_effector(self, joints, targets: torch.Tensor) -> None:
         """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""
         return None

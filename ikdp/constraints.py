@@ -4,8 +4,9 @@
 
 Kinds: locked joints and a pose to stay near (ikdp/joint_constraints.py), obstacles
 (ikdp/obstacles.py), partial targets for pose models: position only, or rotation free about
-an axis (ikdp/partial_targets.py). Each is guided during the reverse process or inpainted,
-kept by the refinement, and checked (ikdp/guidance.py runs them).
+an axis (ikdp/partial_targets.py; a tree's per end effector), a tree's self-collision
+(ikdp/self_collision.py, on by default where its links can meet). Each is guided during the
+reverse process or inpainted, kept by the refinement, and checked (ikdp/guidance.py runs them).
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ from ikdp.constraint_base import Constraint
 from ikdp.joint_constraints import LockedJoints, NearPose
 from ikdp.obstacles import Obstacles
 from ikdp.partial_targets import FreeAxis, PositionOnly
+from ikdp.self_collision import SelfCollision
 
 CONSTRAINTS: dict[str, type[Constraint]] = {
-    cls.name: cls for cls in (LockedJoints, NearPose, Obstacles, PositionOnly, FreeAxis)
+    cls.name: cls for cls in (LockedJoints, NearPose, Obstacles, PositionOnly, FreeAxis, SelfCollision)
 }
 
 

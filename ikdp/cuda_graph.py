@@ -161,8 +161,8 @@ class CapturedSolve:
 
     @torch.inference_mode()
     def __call__(self, targets, *, seed: int):
-        """targets (B, target_dim), as `solve` takes them -> the SolveResult of `solve(targets, ..., generator=
-        torch.Generator("cuda").manual_seed(seed))` (restarts aside, above)."""
+        """targets as `solve` takes them ((B, target_dim); a tree's (B, E, 7) or (B, E, 3)) -> the SolveResult of
+        `solve(targets, ..., generator=torch.Generator("cuda").manual_seed(seed))` (restarts aside, above)."""
         targets = self.solver.arm.validate_targets(targets).to(self.asked.device)
         if targets.shape != self.asked.shape:
             raise ValueError(f"targets: expected shape {tuple(self.asked.shape)}, got {tuple(targets.shape)}")
@@ -211,7 +211,12 @@ def solve_without_sync(
         angles = restart_every_target(arm, angles, goals, restarted, restart_steps, generator, iteration, errors)
     per_sample_targets = targets[:, None].expand(-1, num_samples, -1)
     errors = arm.tip_and_rotation_errors if errors is None else errors
-    error, rotation_error = errors(angles, per_sample_targets)
+    by_effector = arm.errors_by_effector(angles, per_sample_targets)  # a tree's, each (B, K, E); else None
+    if by_effector is None:
+        error, rotation_error = errors(angles, per_sample_targets)
+    else:  # the worst end effector's, from the same kinematics pass
+        error = by_effector[0].amax(dim=-1)
+        rotation_error = None if by_effector[1] is None else by_effector[1].amax(dim=-1)
     return SolveResult(
         angles=angles,
         tip_error=error,
@@ -223,4 +228,6 @@ def solve_without_sync(
         rotation_error=rotation_error,
         network_evaluations=result.network_evaluations,
         restarted=restarted,
+        tip_error_by_effector=None if by_effector is None else by_effector[0],
+        rotation_error_by_effector=None if by_effector is None else by_effector[1],
     )

@@ -27,6 +27,9 @@ from ikdp.constraint_base import Constraint
 from ikdp.joint_constraints import BoundLockedJoints
 from ikdp.partial_targets import BoundPartialTarget
 from ikdp.refine import clamp_task_error
+from ikdp.tree_partial_targets import BoundEffectorParts
+
+PARTIAL_TARGETS = (BoundPartialTarget, BoundEffectorParts)  # a chain's, a tree's (per end effector)
 
 
 class ConstraintSet:
@@ -37,10 +40,10 @@ class ConstraintSet:
         self.batch, self.num_samples = batch, num_samples
         bound = [constraint.bind(arm, batch, num_samples) for constraint in checked(constraints)]
         locked = [item for item in bound if isinstance(item, BoundLockedJoints)]
-        partial = [item for item in bound if isinstance(item, BoundPartialTarget)]
+        partial = [item for item in bound if isinstance(item, PARTIAL_TARGETS)]
         self.locked: BoundLockedJoints | None = merge_locks(locked) if locked else None
-        self.partial: BoundPartialTarget | None = partial[0] if partial else None
-        self.others = [item for item in bound if not isinstance(item, (BoundLockedJoints, BoundPartialTarget))]
+        self.partial: BoundPartialTarget | BoundEffectorParts | None = partial[0] if partial else None
+        self.others = [item for item in bound if not isinstance(item, (BoundLockedJoints, *PARTIAL_TARGETS))]
 
     @staticmethod
     def validate_targets(arm, targets, constraints: Sequence[Constraint]) -> torch.Tensor:
@@ -171,7 +174,8 @@ class ConstrainedTask:
 
     def linearize(self, joints: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         error, partial = self._target_rows(joints, targets)
-        error = clamp_task_error(error, self.arm.position_dim, self.max_position, math.pi / 4)
+        position_dim = self.arm.position_dim if partial is None else partial.position_dim
+        error = clamp_task_error(error, position_dim, self.max_position, math.pi / 4)
         jacobian = self.arm.jacobian(joints) if partial is None else partial.jacobian(joints, targets)
         return error, self._free_columns(jacobian)
 

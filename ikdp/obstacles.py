@@ -24,6 +24,26 @@ GUIDANCE_DAMPING = 1e-4  # its damping (squared): a 7-joint arm's 6 hand rows an
 GUIDANCE_MAX_STEP = 1.0  # radians: the largest joint move of one guidance step, where that system is near singular
 
 
+def depth_and_gradient(depth_of, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """`depth_of(joints)` (M,) and its gradient (M, J) by autograd, also inside the sampler's inference mode."""
+    with torch.inference_mode(False), torch.enable_grad():
+        leaf = joints.clone().requires_grad_(True)
+        depth = depth_of(leaf)
+        (gradient,) = torch.autograd.grad(depth.sum(), leaf)
+    return depth.detach(), gradient
+
+
+def clearing_step(arm, joints: torch.Tensor, depth: torch.Tensor, gradient: torch.Tensor, weight: float):
+    """`weight` times the damped Gauss-Newton step (M, J) that removes `depth` (M,) along `gradient` (M, J) while
+    the hand rows (HAND_WEIGHT) ask every end effector to stay still; zero where there is no depth."""
+    hand = arm.jacobian(joints).to(joints) * math.sqrt(HAND_WEIGHT)  # (M, E, J)
+    rows = torch.cat([hand, gradient[:, None]], dim=1)  # (M, E + 1, J)
+    wanted = torch.cat([torch.zeros(hand.shape[:2]).to(joints), -depth[:, None]], dim=1)
+    step = dls_step(rows, wanted, GUIDANCE_DAMPING)
+    step = step * (GUIDANCE_MAX_STEP / step.abs().amax(dim=-1, keepdim=True).clamp_min(GUIDANCE_MAX_STEP))
+    return weight * torch.where((depth > 0)[:, None], step, torch.zeros_like(step))
+
+
 # --- obstacles -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Obstacles(Constraint):
@@ -46,7 +66,7 @@ class Obstacles(Constraint):
     name: ClassVar[str] = "obstacles"
 
     def bind(self, arm, batch: int, num_samples: int) -> BoundObstacles:
-        dim = arm.position_dim
+        dim = 2 if arm.kind == "planar" else 3  # a point in the arm's space (a tree's position_dim stacks its hands)
         centers = finite_tensor(self.centers, "obstacles: centers")
         radii = finite_tensor(self.radii, "obstacles: radii")
         if centers.ndim not in (2, 3) or centers.shape[-1] != dim:
@@ -67,7 +87,11 @@ class Obstacles(Constraint):
             raise ValueError(
                 f"obstacles: held_joints: a planar arm has no joints off its chain, got {self.held_joints!r}"
             )
-        if arm.kind != "planar":
+        if arm.kind == "tree":
+            from ikdp.tree_spheres import tree_link_spheres
+
+            spheres = tree_link_spheres(arm, self.held_joints)
+        elif arm.kind != "planar":
             from ikdp.link_spheres import link_spheres
 
             spheres = link_spheres(arm, self.held_joints)
@@ -105,14 +129,11 @@ class BoundObstacles(BoundConstraint):
         return torch.relu(radii - distance).sum(dim=(-1, -2))
 
     def penetration_and_gradient(self, joints: torch.Tensor, clearance: float) -> tuple[torch.Tensor, torch.Tensor]:
-        """(M,) penetration and its gradient (M, J): in closed form for a robot, by autograd for a planar arm."""
-        if self.spheres is not None:
+        """(M,) penetration and its gradient (M, J): in closed form for a chain, by autograd for a planar arm and a
+        tree (whose joints move the spheres of the chains they lie on)."""
+        if self.spheres is not None and self.arm.kind == "chain":
             return self.sphere_penetration_and_gradient(joints, clearance)
-        with torch.inference_mode(False), torch.enable_grad():  # also inside the sampler's inference mode
-            leaf = joints.clone().requires_grad_(True)
-            depth = self.penetration(leaf, clearance)
-            (gradient,) = torch.autograd.grad(depth.sum(), leaf)
-        return depth.detach(), gradient
+        return depth_and_gradient(lambda leaf: self.penetration(leaf, clearance), joints)
 
     def sphere_penetration_and_gradient(self, joints: torch.Tensor, clearance: float):
         """A robot's penetration and its gradient from the joints' axes, without autograd (35 -> 15 ms for 3200 rows).
@@ -149,12 +170,7 @@ class BoundObstacles(BoundConstraint):
         + 5 refinement steps, `python -m benchmarks.constraints`).
         """
         depth, gradient = self.penetration_and_gradient(joints, self.clearance)
-        hand = self.arm.jacobian(joints).to(joints) * math.sqrt(HAND_WEIGHT)  # (M, E, J)
-        rows = torch.cat([hand, gradient[:, None]], dim=1)  # (M, E + 1, J)
-        wanted = torch.cat([torch.zeros(hand.shape[:2]).to(joints), -depth[:, None]], dim=1)
-        step = dls_step(rows, wanted, GUIDANCE_DAMPING)
-        step = step * (GUIDANCE_MAX_STEP / step.abs().amax(dim=-1, keepdim=True).clamp_min(GUIDANCE_MAX_STEP))
-        return self.weight * torch.where((depth > 0)[:, None], step, torch.zeros_like(step))
+        return clearing_step(self.arm, joints, depth, gradient, self.weight)
 
     def penetration_rows(self, joints):
         depth, gradient = self.penetration_and_gradient(joints, self.clearance / 2)

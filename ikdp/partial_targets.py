@@ -1,5 +1,8 @@
 """Partial targets for a pose model: the position only, or a rotation free about one axis.
 
+A tree (several end effectors) says per end effector which parts count, `PositionOnly(effectors=...)`:
+ikdp/tree_partial_targets.py.
+
 The model was trained on full poses, so it is conditioned on one: each of a target's K samples
 gets its own full pose that satisfies the partial target (position only: the rotation of a
 random reachable pose whose hand lies nearest the target; free axis: the target's rotation
@@ -12,7 +15,7 @@ about that axis).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -28,26 +31,49 @@ GUIDE_DAMPING = 1e-2  # damping of guidance's least-squares step: x̂0 early on 
 
 
 def require_pose_model(arm, name: str) -> None:
+    if arm.kind == "tree":
+        raise ValueError(f"{name}: a tree's partial targets are PositionOnly(effectors=...), got {arm!r}")
     if getattr(arm, "target_dim", 0) != 7:
         raise ValueError(f"{name}: partial targets need a pose model (targets of 7 numbers), got {arm!r}")
 
 
 @dataclass(frozen=True)
 class PositionOnly(Constraint):
-    """Reach the target's position with any rotation; targets may be (B, 3) or (B, 7) (rotation ignored)."""
+    """Reach the target's position with any rotation; targets may be (B, 3) or (B, 7) (rotation ignored).
+
+    A tree: `effectors` maps an end effector to the part of its target that counts, "position" or "free"
+    (none: its row is ignored); the others keep their pose. None: every end effector's position only.
+    """
 
     weight: float = 0.5  # per step, the share of a least-squares step on the position miss applied to x̂0
+    effectors: Mapping[str, str] | None = None  # a tree's end effectors whose target is partial, by link name
     name: ClassVar[str] = "position_only"
 
     def validate_targets(self, arm, targets) -> torch.Tensor:
-        require_pose_model(arm, self.name)
+        if arm.kind == "tree":
+            from ikdp.tree_partial_targets import effector_parts, validate_tree_targets
+
+            return validate_tree_targets(arm, effector_parts(arm, self.effectors, self.name), targets)
+        self._check_chain(arm)
         rows = validate_target_rows(targets, 3) if _width(targets) == 3 else arm.validate_targets(targets)[:, :3]
         identity = torch.tensor([[1.0, 0.0, 0.0, 0.0]]).expand(len(rows), 4)
         return torch.cat([rows, identity], dim=-1)
 
     def bind(self, arm, batch: int, num_samples: int) -> BoundPartialTarget:
-        require_pose_model(arm, self.name)
+        if arm.kind == "tree":
+            from ikdp.tree_partial_targets import BoundEffectorParts, effector_parts
+
+            parts = effector_parts(arm, self.effectors, self.name)
+            return BoundEffectorParts(arm, parts, _weight(self.weight, self.name))
+        self._check_chain(arm)
         return BoundPartialTarget(arm, None, _weight(self.weight, self.name))
+
+    def _check_chain(self, arm) -> None:
+        require_pose_model(arm, self.name)
+        if self.effectors is not None:
+            raise ValueError(
+                f"{self.name}: effectors names the end effectors of a tree; this arm has one, got {self.effectors!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -97,6 +123,7 @@ class BoundPartialTarget(BoundConstraint):
     arm: object
     axis: torch.Tensor | None  # (3,) the free axis in the end-effector frame; None: position only
     weight: float
+    position_dim: int = 3  # the leading rows of `task_error` that are positions (refinement's clamp)
 
     def conditions(self, targets: torch.Tensor, num_samples: int, generator: torch.Generator | None) -> torch.Tensor:
         """targets (B, 7) -> a full pose per sample, (B * K, 7), each meeting the partial target."""
@@ -156,7 +183,14 @@ class BoundPartialTarget(BoundConstraint):
         reached, asked = rotation @ axis, self._world_axis(targets.double())
         return torch.atan2(torch.linalg.cross(reached, asked).norm(dim=-1), (reached * asked).sum(-1)).float()
 
+    def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """The position error (...) and `rotation_error` (...): what reaching this partial target means."""
+        return self.arm.tip_error(joints, targets), self.rotation_error(joints, targets)
+
+    def errors_by_effector(self, joints, targets: torch.Tensor) -> None:
+        return None  # one end effector: its errors are `tip_and_rotation_errors`
+
     def guide_toward(self, joints: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
         """joints (M, J), targets (M, 7) -> `weight` times a damped least-squares step on the residual."""
-        error = clamp_task_error(self.task_error(joints, targets), 3, 0.2 * self.arm.span, math.pi / 4)
+        error = clamp_task_error(self.task_error(joints, targets), self.position_dim, 0.2 * self.arm.span, math.pi / 4)
         return self.weight * dls_step(self.jacobian(joints, targets), error, GUIDE_DAMPING**2)

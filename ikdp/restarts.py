@@ -17,15 +17,16 @@ def within_tolerances(arm, joints: torch.Tensor, goals: torch.Tensor, constraint
     """joints (..., J), goals (..., target_dim) -> (...) True where the tip is within `arm.position_tolerance`
     of the goal (and, for pose targets, its orientation within `arm.rotation_tolerance`).
 
-    `constraints` (a ConstraintSet over the same B x K rows): a partial target's rotation error replaces the
-    full one (none for position only), and every constraint must hold (violation 0, as tracking checks).
+    `constraints` (a ConstraintSet over the same B x K rows): a partial target's errors replace the full
+    ones (only the parts asked count), and every constraint must hold (violation 0, as tracking checks).
     `errors`: `arm.tip_and_rotation_errors` compiled (ikdp/cuda_graph.py's fused capture); None: the method.
     """
-    position, rotation = (arm.tip_and_rotation_errors if errors is None else errors)(joints, goals)
-    within = position < arm.position_tolerance
     partial = None if constraints is None else constraints.partial
-    if partial is not None:
-        rotation = partial.rotation_error(joints, goals)
+    if partial is not None:  # only the parts asked count (a free hand's position does not)
+        position, rotation = partial.tip_and_rotation_errors(joints, goals)
+    else:
+        position, rotation = (arm.tip_and_rotation_errors if errors is None else errors)(joints, goals)
+    within = position < arm.position_tolerance
     if rotation is not None:
         within &= rotation.to(within.device) < arm.rotation_tolerance
     if constraints is not None:

@@ -26,7 +26,8 @@ class SolveResult:
     constraint_violation: torch.Tensor | None = None  # (B, K) summed violation of `angles`, 0 where all hold
     network_evaluations: int = 0  # denoiser calls each sample went through, one after another (the refinement: none)
     restarted: torch.Tensor | None = None  # (B,) True where a target, unreached, restarted from random starts
-    # several end effectors (a tree): each one's errors, (B, K, E), of which tip_error and rotation_error are the worst
+    # several end effectors (a tree): each one's errors, (B, K, E), of which tip_error and rotation_error are the worst;
+    # NaN where a partial target did not ask that part (a free hand's position, a position-only hand's rotation)
     tip_error_by_effector: torch.Tensor | None = None
     rotation_error_by_effector: torch.Tensor | None = None
 

@@ -16,7 +16,7 @@ from ikdp.constraint_base import Constraint
 from ikdp.denoisers.int8 import Int8Weights, int8_available
 from ikdp.device import available_bytes, checked_device
 from ikdp.fused_chain import small_batch
-from ikdp.guidance import ConstraintSet
+from ikdp.guidance import ConstraintSet, checked
 from ikdp.model import IKDiffusion, ModelConfig
 from ikdp.priors import PosePrior
 from ikdp.restarts import restart_unreached
@@ -126,7 +126,8 @@ class Solver:
         terms. None draws it from `generator` (as the first thing drawn).
         `constraints` (ikdp.constraint_names(): locked joints, a pose to stay near, obstacles,
         partial targets) bend the reverse process toward them and are kept by the refinement;
-        `constraint_violation` then says where they hold (docs/library.md, "Constraints").
+        `constraint_violation` then says where they hold (docs/library.md, "Constraints"). A tree whose
+        links can meet keeps its branches apart unless given `ikdp.SelfCollision(enabled=False)`.
         `restart_steps`: a numerical fallback. The targets none of whose K refined poses is within the arm's
         tolerances (1 mm and 1 degree on a robot) get K fresh uniform starts within the limits, refined that
         many DLS steps (ikdp/restarts.py); `restarted` (B,) says which. With constraints, reaching also means
@@ -151,6 +152,7 @@ class Solver:
                 constraints=constraints,
             )
         arm = self.arm
+        constraints = arm.with_default_constraints(checked(constraints))  # a tree: its self-collision check
         targets = ConstraintSet.validate_targets(arm, targets, constraints).to(self.device)
         spacing = self.default_spacing(sampler, steps) if spacing is None else spacing
         self.check_options(len(targets), num_samples, sampler, steps, spacing, refine_steps, generator, initial_noise)
@@ -204,11 +206,11 @@ class Solver:
         restarted = None
         if restart_steps and not result.stopped:
             angles, restarted = restart_unreached(kinematics, angles, goals, restart_steps, generator, bound)
-        error, rotation_error = kinematics.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
-        raw_error = error if angles is raw else kinematics.tip_error(raw, per_sample_targets)
-        by_effector = arm.errors_by_effector(angles, per_sample_targets)  # a tree's, each (B, K, E); else None
-        if bound is not None and bound.partial is not None:
-            rotation_error = bound.partial.rotation_error(angles, per_sample_targets)
+        measure = kinematics if bound is None or bound.partial is None else bound.partial  # partial: the parts asked
+        error, rotation_error = measure.tip_and_rotation_errors(angles, per_sample_targets)  # one kinematics pass
+        raw_error = error if angles is raw else measure.tip_and_rotation_errors(raw, per_sample_targets)[0]
+        # a tree's, each (B, K, E); else None
+        by_effector = (arm if measure is kinematics else measure).errors_by_effector(angles, per_sample_targets)
         states, estimates = result.states, result.estimates
         if per_target == 1:  # (S, B * K, 1, J) -> (S, B, K, J)
             states = None if states is None else states.reshape(states.shape[0], batch, num_samples, -1)
@@ -261,7 +263,8 @@ class Solver:
         """This solve for `batch` targets as one CUDA graph (a solver on a GPU; ikdp/cuda_graph.py):
         `captured = solver.capture(1000, num_samples=16, sampler="ddim", steps=1, refine_steps=8)`, then
         `captured(targets, seed=0)` replays it from one launch. `options`: solve's num_samples, sampler, steps,
-        spacing, refine_steps and restart_steps (constraints, callbacks and trajectories stay eager); `fused=True`
+        spacing, refine_steps and restart_steps (constraints, a tree's self-collision check among them, callbacks and
+        trajectories stay eager); `fused=True`
         compiles each refinement step first (torch.compile; Triton)."""
         from ikdp.cuda_graph import CapturedSolve  # CUDA-only machinery, loaded when asked for
 

@@ -37,7 +37,7 @@ import torch
 
 from ikdp.constraint_base import joint_difference
 from ikdp.fused_chain import small_batch
-from ikdp.guidance import ConstraintSet
+from ikdp.guidance import ConstraintSet, checked
 from ikdp.joint_constraints import NearPose
 
 WARM_START_STEPS = 10  # DLS steps of the warm-started candidate (at least the solve's refine_steps)
@@ -157,6 +157,7 @@ def track(
         raise ValueError(f"look_ahead: expected a number of targets >= 0, got {look_ahead!r}")
     position_tolerance = arm.position_tolerance if position_tolerance is None else position_tolerance
     rotation_tolerance = arm.rotation_tolerance if rotation_tolerance is None else rotation_tolerance
+    constraints = arm.with_default_constraints(checked(constraints))  # a tree: its self-collision check, as solve's
     # a partial target is met by the solve's own residual; the refinement below aims at full targets
     full_targets = not any(hasattr(item, "validate_targets") for item in constraints)
     refine_task = ConstraintSet(arm, list(constraints), 1, 1).refine_task() if constraints else None

@@ -314,6 +314,52 @@ class TreeArm(JointLimits):
             return position, None
         return position, torch.stack([rotation for _, rotation in pairs], dim=-1)
 
+    def joint_axes_and_origins(self, joints) -> tuple[torch.Tensor, torch.Tensor]:
+        """(..., J) -> every joint's world axis (..., J, 3) and origin (..., J, 3) after its motion, each from the
+        first chain it lies on (a shared joint sits alike in all)."""
+        joints = self._as_joints(joints)
+        axes = joints.new_zeros(*joints.shape, 3)
+        origins = joints.new_zeros(*joints.shape, 3)
+        for chain, part, index in zip(
+            self.chains, self._chain_joints(joints), self._constants_like(joints)["indices"], strict=True
+        ):
+            frames, chain_origins, _, _ = chain._joint_frames(part)
+            axes[..., index, :] = frames[..., :, 2]
+            origins[..., index, :] = chain_origins
+        return axes, origins
+
+    def joints_moving(self, link_indices) -> torch.Tensor:
+        """(S,) indices into `link_names` -> (S, J) True where the joint moves that link (it lies on the link's
+        path from the base)."""
+        moving = torch.zeros(len(link_indices), self.num_joints, dtype=torch.bool)
+        for row, link in enumerate(link_indices):
+            name = self.link_names[link]
+            number = next(n for n, chain in enumerate(self.chains) if name in chain.link_names)
+            chain = self.chains[number]
+            last = chain.link_frames[chain.link_names.index(name)]  # -1: the base, moved by nothing
+            moving[row, self._chain_indices[number][: last + 1]] = True
+        return moving
+
+    @functools.cached_property
+    def links_can_meet(self) -> bool:
+        """True where links of different branches can touch (ikdp/tree_spheres.py): the solve then keeps them apart
+        by default. False where they cannot, or where the links' geometry cannot be read (no URDF, no meshes or no
+        trimesh: nothing to check against)."""
+        from ikdp.tree_spheres import meeting_pairs, tree_link_spheres
+
+        try:
+            spheres = tree_link_spheres(self)
+        except ValueError:
+            return False
+        return len(meeting_pairs(self, spheres)) > 0
+
+    def with_default_constraints(self, constraints) -> list:
+        """The constraints a solve runs: those given, and SelfCollision() where the links can meet and none was
+        given (`ikdp.SelfCollision(enabled=False)` turns it off)."""
+        from ikdp.self_collision import with_self_collision
+
+        return with_self_collision(self, constraints)
+
     def small_batch_kinematics(self) -> TreeArm:
         """The tree itself: its chains share joints, so a few poses take the general kinematics (a chain's fused
         counterpart, ikdp/fused_chain.py, covers one end effector)."""

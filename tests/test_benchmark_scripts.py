@@ -17,6 +17,7 @@ HELPERS = {
     "pk_chain",
     "constraint_tracking",
     "constraint_common",
+    "pinocchio_clik",
 }  # run or imported by another script, not a command of its own
 SCRIPTS = sorted(path.stem for path in (REPO / "benchmarks").glob("*.py") if path.stem not in HELPERS)
 
@@ -129,3 +130,38 @@ def test_a_pipeline_row_records_the_share_of_targets_restarted_only_where_it_res
     assert Answer.of_solve(solver.solve(targets, num_samples=4, sampler="ddim", steps=2)).restarted_share() is None
     assert Answer(solved.angles, torch.tensor([True, False, False, False])).restarted_share() == 0.25
     assert Answer(solved.angles, None).restarted_share() is None  # PseudoInverseIK, random starts without restarts
+
+
+def test_the_tree_benchmarks_run_on_a_small_tree_with_pinocchio_beside_them(tmp_path, monkeypatch):
+    """tree_seeds' rows (IKDP, uniform and, where pin is installed, Pinocchio's CLIK) and tree_self_collision's,
+    end to end on a two-armed tree trained for a few steps."""
+    from tree_helpers import BODIES_URDF
+
+    from benchmarks.tree_seeds import TreeSeedsConfig
+    from benchmarks.tree_seeds import main as tree_seeds
+    from benchmarks.tree_self_collision import TreeSelfCollisionConfig
+    from benchmarks.tree_self_collision import main as tree_self_collision
+    from ikdp.train import main as train
+
+    monkeypatch.setenv("IKDP_CACHE", str(tmp_path / "cache"))
+    urdf = tmp_path / "bodies.urdf"
+    urdf.write_text(BODIES_URDF)
+    checkpoint = tmp_path / "bodies.pt"
+    train(
+        [
+            *("--urdf", str(urdf), "--ee-link", "left_hand", "--ee-link", "right_hand", "--target", "position"),
+            *("--steps", "3", "--batch", "16", "--hidden", "24", "--blocks", "1", "--timesteps", "8"),
+            *("--eval-targets", "0", "--threads", "1", "--output", str(checkpoint), "--log-dir", str(tmp_path / "tb")),
+        ]
+    )
+    seeds = tree_seeds(
+        TreeSeedsConfig(str(checkpoint), targets=4, num_samples=2, dls_steps=(3,), output=tmp_path / "seeds.json")
+    )
+    expected = {"ikdp", "uniform"} | ({"pinocchio_clik"} if seeds["pinocchio"] else set())
+    assert {row["seeds"] for row in seeds["rows"]} == expected
+    assert all(0 <= row["solved"] <= 1 for row in seeds["rows"])
+    apart = tree_self_collision(
+        TreeSelfCollisionConfig(str(checkpoint), targets=4, num_samples=2, rounds=1, output=tmp_path / "apart.json")
+    )
+    assert [row["setting"] for row in apart["rows"]] == ["self_collision_on", "self_collision_off"]
+    assert apart["pairs_checked"] > 0

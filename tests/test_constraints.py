@@ -24,7 +24,14 @@ def seeded(seed: int = 0) -> torch.Generator:
 
 
 def test_the_registry_builds_every_kind_by_name():
-    assert ikdp.constraint_names() == ("locked_joints", "near_pose", "obstacles", "position_only", "free_axis")
+    assert ikdp.constraint_names() == (
+        "locked_joints",
+        "near_pose",
+        "obstacles",
+        "position_only",
+        "free_axis",
+        "self_collision",
+    )
     assert ikdp.make_constraint("locked_joints", values={0: 0.5}) == ikdp.LockedJoints({0: 0.5})
     with pytest.raises(ValueError, match="constraint: expected one of"):
         ikdp.make_constraint("no_such_kind")

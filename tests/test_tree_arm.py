@@ -5,53 +5,19 @@ import math
 
 import pytest
 import torch
+from tree_helpers import TWO_ARMS_URDF, two_arms, untrained_solver
 
 import ikdp
 from ikdp.chain_arm import ChainArm
-from ikdp.denoisers import DenoiserConfig
 from ikdp.denoisers.int8 import int8_available
 from ikdp.describe import training_command
-from ikdp.model import IKDiffusion, ModelConfig
-from ikdp.priors import PosePrior
 from ikdp.refine import damped_least_squares
 from ikdp.robot_data import example_robot_data_file
-from ikdp.schedule import ScheduleConfig
-from ikdp.solver import Solver
 from ikdp.train import TrainConfig, build_chain_arm, main
 from ikdp.tree_arm import TreeArm
-from ikdp.urdf import parse_chain
 
 G1_URDF = "g1_description/urdf/g1_29dof_rev_1_0.urdf"
 G1_HANDS = ["left_rubber_hand", "right_rubber_hand"]
-
-# a waist joint shared by two arms of two joints each, every axis different, and a fixed hand at each end
-TWO_ARMS_URDF = """<robot name="two_arms">
-  <link name="base"/><link name="torso"/>
-  <link name="l1"/><link name="l2"/><link name="left_hand"/>
-  <link name="r1"/><link name="r2"/><link name="right_hand"/>
-  <joint name="waist" type="revolute"><parent link="base"/><child link="torso"/>
-    <origin xyz="0 0 0.3"/><axis xyz="0 0 1"/><limit lower="-1.5" upper="1.5"/></joint>
-  <joint name="left_shoulder" type="revolute"><parent link="torso"/><child link="l1"/>
-    <origin xyz="0 0.2 0.1" rpy="0.3 0 0"/><axis xyz="0 1 0"/><limit lower="-2" upper="2"/></joint>
-  <joint name="left_elbow" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.25 0 0"/><axis xyz="1 0 0"/><limit lower="-2" upper="2"/></joint>
-  <joint name="left_wrist" type="continuous"><parent link="l2"/><child link="left_hand"/>
-    <origin xyz="0.2 0 0"/><axis xyz="0 0 1"/></joint>
-  <joint name="right_shoulder" type="revolute"><parent link="torso"/><child link="r1"/>
-    <origin xyz="0 -0.2 0.1" rpy="-0.3 0 0"/><axis xyz="0 1 0"/><limit lower="-2" upper="2"/></joint>
-  <joint name="right_elbow" type="revolute"><parent link="r1"/><child link="r2"/>
-    <origin xyz="0.25 0 0"/><axis xyz="1 0 0"/><limit lower="-2" upper="2"/></joint>
-  <joint name="right_hand_joint" type="fixed"><parent link="r2"/><child link="right_hand"/>
-    <origin xyz="0.2 0 0" rpy="0 0.5 0"/></joint>
-</robot>"""
-
-
-def two_arms(target: str = "pose") -> TreeArm:
-    chains = [
-        ChainArm.from_description(parse_chain(TWO_ARMS_URDF, hand), target=target)
-        for hand in ("left_hand", "right_hand")
-    ]
-    return TreeArm(chains, target=target)
 
 
 @pytest.fixture(scope="module")
@@ -61,18 +27,6 @@ def g1() -> TreeArm:
 
 def poses(arm, count: int, seed: int = 0) -> torch.Tensor:
     return arm.random_poses(count, generator=torch.Generator().manual_seed(seed)).double()
-
-
-def untrained_solver(arm: TreeArm) -> Solver:
-    torch.manual_seed(0)
-    config = ModelConfig(
-        representation="joints",
-        prediction="sample",
-        schedule=ScheduleConfig(timesteps=8, kind="karras"),
-        denoiser=DenoiserConfig(kind="chain_film", hidden=48, blocks=1, dls_skip=True, limit_aware_step=True),
-        arm=arm.to_config(),
-    )
-    return Solver(IKDiffusion(config), PosePrior("uniform"), {})
 
 
 def test_the_g1_hands_share_the_waist_once(g1):
@@ -110,6 +64,28 @@ def test_g1_forward_kinematics_matches_pytorch_kinematics(g1, monkeypatch):
         reference = chain.forward_kinematics(joints[:, order]).get_matrix()
         torch.testing.assert_close(position[:, effector], reference[:, :3, 3], atol=1e-9, rtol=0)
         torch.testing.assert_close(rotation[:, effector], reference[:, :3, :3], atol=1e-9, rtol=0)
+
+
+def test_g1_forward_kinematics_matches_pinocchio(g1):
+    """Pinocchio, a trusted reference (benchmarks/requirements-bench.txt), on the URDF with every joint off the
+    tree held at zero: both hands' placements agree to 1e-9."""
+    pin = pytest.importorskip("pinocchio")
+    model = pin.buildModelFromUrdf(str(example_robot_data_file(G1_URDF)))
+    data = model.createData()
+    slots = [model.joints[model.getJointId(name)].idx_q for name in g1.joint_names]
+    frames = [model.getFrameId(hand) for hand in G1_HANDS]
+    joints = poses(g1, 64, seed=4)
+    rotation, position = g1.end_effector_frame(joints)  # (B, E, 3, 3), (B, E, 3)
+    for row in range(len(joints)):
+        q = pin.neutral(model)
+        q[slots] = joints[row].numpy()
+        pin.framesForwardKinematics(model, data, q)
+        for effector, frame in enumerate(frames):
+            placement = data.oMf[frame]
+            torch.testing.assert_close(
+                position[row, effector], torch.from_numpy(placement.translation), atol=1e-9, rtol=0
+            )
+            torch.testing.assert_close(rotation[row, effector], torch.from_numpy(placement.rotation), atol=1e-9, rtol=0)
 
 
 @pytest.mark.parametrize("target", ["pose", "position"])
@@ -262,3 +238,23 @@ def test_locks_a_pose_to_stay_near_restarts_and_tracking_work_on_a_tree():
     path = arm.stacked_targets(arm.end_effector(joints[:1] + torch.linspace(0, 0.2, 4)[:, None]))  # (P, E, 7)
     tracked = solver.track(path, joints[0], num_samples=3)
     assert tracked.angles.shape == (4, 6) and bool(tracked.reached.all())
+
+
+def test_the_pinocchio_clik_baseline_reaches_both_hands_from_nearby(g1):
+    """The benchmark's Pinocchio row (benchmarks/pinocchio_clik.py) is a working solver: from 0.1 rad off, 20 steps
+    put both hands within 1 mm and 1 degree, as IKDP's own DLS does (test_refinement_reaches_both_hands_...)."""
+    pytest.importorskip("pinocchio")
+    from benchmarks.pinocchio_clik import PinocchioTree
+
+    reference = PinocchioTree(g1, example_robot_data_file(G1_URDF))
+    joints = poses(g1, 16, seed=2)
+    start = g1.normalize_joints(joints + 0.1 * torch.randn(joints.shape, generator=torch.Generator().manual_seed(3)))
+    solved = torch.stack(
+        [
+            torch.from_numpy(reference.clik(start[row].numpy(), reference.forward(joints[row].numpy()), 20))
+            for row in range(len(joints))
+        ]
+    )
+    position, rotation = g1.tip_and_rotation_errors(solved, g1.end_effector(joints))
+    assert float(((position < 1e-3) & (rotation < math.radians(1))).float().mean()) > 0.9
+    assert int(g1.limit_violations(solved).sum()) == 0
