@@ -503,6 +503,12 @@ class ChainArm(JointLimits):
         """`refine.damped_least_squares` on this arm (FusedChain.refine: the same, fused, for a few poses)."""
         return damped_least_squares(self, joints, targets, steps=steps, task=task)
 
+    def refine_scored(
+        self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
+    ) -> tuple[torch.Tensor, None]:
+        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
+        return damped_least_squares(self, joints, targets, steps=steps, until_reached=until_reached), None
+
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """`position_error` and, for pose targets (..., 7), `rotation_error`, from one float64 kinematics pass."""
         rotation, position = self.end_effector_frame(self._as_joints(joints).double())

@@ -27,7 +27,7 @@ from __future__ import annotations
 import torch
 
 from ikdp.refine import RefineTask, damped_least_squares
-from ikdp.small_refine import SmallRefine
+from ikdp.small_refine import RefineScores, SmallRefine
 
 FUSED_ROWS = 256  # poses a call: at most this many go through FusedChain on a CPU
 
@@ -310,3 +310,48 @@ class FusedChain:
         rows, targets, _ = self._rows(joints, targets)
         refined = self.small_refine().refine(rows, targets, steps, damping, max_miss_fraction)
         return refined.to(dtype).reshape(*batch, -1)
+
+    def refine_scored(
+        self,
+        joints: torch.Tensor,
+        targets: torch.Tensor,
+        *,
+        steps: int,
+        damping: float = 1e-3,
+        max_miss_fraction: float = 0.2,
+        until_reached: bool = False,
+    ) -> tuple[torch.Tensor, RefineScores | None]:
+        """`refine` (no task) of joints (B, K, J) toward targets (B, K, target_dim), and on a CPU the errors its own
+        kinematics measured on the way (`RefineScores`, each (B, K)): a one-target solve's error checks read them
+        where they would take two more kinematics passes. Elsewhere (None) the caller measures them.
+        `until_reached`: stop before a step once every target has a pose within the arm's tolerances."""
+        if joints.device.type != "cpu":
+            refined = damped_least_squares(
+                self,
+                joints,
+                targets,
+                steps=steps,
+                damping=damping,
+                max_miss_fraction=max_miss_fraction,
+                until_reached=until_reached,
+            )
+            return refined, None
+        if not isinstance(steps, int) or steps < 0:
+            raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
+        dtype, batch = joints.dtype, joints.shape[:-1]
+        rows, targets, _ = self._rows(joints, targets)
+        refined, scores = self.small_refine().refine_scored(
+            rows,
+            targets,
+            steps,
+            damping,
+            max_miss_fraction,
+            scored=True,
+            output_dtype=dtype,
+            until_within=(joints.shape[-2], self.arm.position_tolerance, self.arm.rotation_tolerance)
+            if until_reached
+            else None,
+        )
+        shaped = lambda value: None if value is None else value.reshape(batch)  # noqa: E731
+        scores = RefineScores(shaped(scores.position), shaped(scores.rotation), shaped(scores.first_position))
+        return refined.to(dtype).reshape(*batch, -1), scores

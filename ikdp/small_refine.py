@@ -11,6 +11,8 @@ loop's.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 
@@ -134,18 +136,51 @@ class SmallRefine:
         self, rows: torch.Tensor, targets: torch.Tensor, steps: int, damping: float, max_miss_fraction: float
     ) -> torch.Tensor:
         """rows (N, J), targets (N, target_dim), any float dtype on the CPU -> refined rows (N, J) in float64."""
+        return self.refine_scored(rows, targets, steps, damping, max_miss_fraction)[0]
+
+    def refine_scored(
+        self,
+        rows: torch.Tensor,
+        targets: torch.Tensor,
+        steps: int,
+        damping: float,
+        max_miss_fraction: float,
+        *,
+        scored: bool = False,
+        output_dtype: torch.dtype = torch.float64,
+        until_within: tuple[int, float, float] | None = None,
+    ) -> tuple[torch.Tensor, RefineScores | None]:
+        """`refine`, and with `scored` the errors the loop's own kinematics give on the way (`RefineScores`): the
+        given poses' position errors from its first pass, the refined poses' errors from one more pass, on the poses
+        rounded to `output_dtype` as returned. A solve's checks then need no kinematics of their own.
+
+        `until_within` (K, position tolerance, rotation tolerance): stop before a step once each target (K
+        consecutive rows) has a pose within both, as every step's error already says (its parts' norms are the
+        position error and the rotation angle); the scores are then those of the poses before rounding."""
         joints = rows.detach().double().numpy()
         goals = targets.detach().double().numpy()
         rotations = self.target_rotations(goals) if self.pose_targets else None
         limits = np.array([max_miss_fraction * self.span, np.pi / 4])[: 2 if self.pose_targets else 1, None]
         damping_squared = damping**2
         both_goals = None
-        for _ in range(steps):
+        first_position = None
+        for index in range(steps + 1):
+            if index == steps:
+                if not scored:
+                    break
+                if output_dtype != torch.float64:  # the errors of the poses as returned
+                    joints = torch.from_numpy(joints).to(output_dtype).double().numpy()
             frames, end = self.frames(joints)
             error = self.task_error(end, goals, rotations)
-            jacobian = self.jacobian(joints, frames, end)
             parts = error.reshape(len(joints), -1, 3)  # refine.clamp_task_error
             norms = norm(parts)
+            if first_position is None:
+                first_position = norms[:, 0, 0]
+            if index == steps:
+                break
+            if until_within is not None and reached(norms[:, :, 0], *until_within):
+                break
+            jacobian = self.jacobian(joints, frames, end)
             error = (parts * (limits / np.maximum(norms, limits))).reshape(len(joints), -1)
             step = self.dls(jacobian, error, damping_squared)
             moved = self.normalized(joints + step)
@@ -165,4 +200,37 @@ class SmallRefine:
                 take = blocked.any(axis=-1) & (misses[1] < misses[0])
                 moved = np.where(take[:, None], held, moved)
             joints = moved
-        return torch.from_numpy(joints)
+        refined = torch.from_numpy(joints)
+        if not scored:
+            return refined, None
+        # the rotation error's norm is its angle: quaternion_to_axis_angle's, as tip_and_rotation_errors measures it
+        final = torch.from_numpy(norms[:, :, 0]).float()
+        return refined, RefineScores(
+            position=final[:, 0],
+            rotation=final[:, 1] if self.pose_targets else None,
+            first_position=torch.from_numpy(first_position).float(),
+        )
+
+
+def reached(norms: np.ndarray, per_target: int, position_tolerance: float, rotation_tolerance: float) -> bool:
+    """norms (N, 1 or 2): each pose's position error (and rotation angle) -> whether every target, `per_target`
+    consecutive rows, has one pose within both tolerances."""
+    within = norms[:, 0] < position_tolerance
+    if norms.shape[1] > 1:
+        within &= norms[:, 1] < rotation_tolerance
+    return bool(within.reshape(-1, per_target).any(axis=1).all())
+
+
+@dataclass(frozen=True)
+class RefineScores:
+    """What the refinement's own kinematics measured, each (N,) float32: `ChainArm.tip_and_rotation_errors` of the
+    refined poses (rotation None for position targets), and the position error of the poses it started from."""
+
+    position: torch.Tensor
+    rotation: torch.Tensor | None
+    first_position: torch.Tensor
+
+    def within(self, arm) -> torch.Tensor:
+        """True where the refined pose is within the arm's tolerances, as restarts.within_tolerances says."""
+        within = self.position < arm.position_tolerance
+        return within if self.rotation is None else within & (self.rotation < arm.rotation_tolerance)
