@@ -131,6 +131,16 @@ class SmallRefine:
         angle = 2 * np.arctan2(norm(quaternion[:, 1:])[:, 0], quaternion[:, 0])
         return position, torch.from_numpy(angle).float()
 
+    def error_and_step(self, rows: torch.Tensor, targets: torch.Tensor, damping_squared: float):
+        """rows (N, J), targets (N, target_dim) -> the task error (N, E) and the damped least-squares step
+        (N, J), computed in float64, returned in the rows' dtype: what the robot denoiser reads as features."""
+        joints = rows.detach().double().numpy()
+        goals = targets.detach().double().numpy()
+        frames, end = self.frames(joints)
+        error = self.task_error(end, goals, self.target_rotations(goals) if self.pose_targets else None)
+        step = self.dls(self.jacobian(joints, frames, end), error, damping_squared)
+        return torch.from_numpy(error).to(rows.dtype), torch.from_numpy(step).to(rows.dtype)
+
     # --- the loop --------------------------------------------------------------------------------
     def refine(
         self, rows: torch.Tensor, targets: torch.Tensor, steps: int, damping: float, max_miss_fraction: float

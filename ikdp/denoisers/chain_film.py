@@ -116,6 +116,11 @@ class ChainFiLMDenoiser(nn.Module):
         # a few rows without gradients (one target's K on a CPU): the fused kinematics, the same numbers to float
         # rounding in a tenth of the time; training and large batches keep the arm's own
         fused = not torch.is_grad_enabled() and small_batch(len(joints), joints.device)
+        if fused and not self.config.limit_aware_step:  # the error and the step alone, by NumPy's kernels
+            error, step = self.arm.small_batch_kinematics().task_error_and_dls_step(
+                joints, target, self.damping_squared
+            )
+            return torch.cat((x, error, step / self.half_range), dim=-1), step
         kinematics = self.arm.small_batch_kinematics() if fused else self.arm
         error, jacobian = kinematics.task_error_and_jacobian(joints, target)  # (M, E), (M, E, J)
         step = dls_step(jacobian, error, self.damping_squared)
