@@ -265,6 +265,17 @@ class FusedChain:
             step = dls_step(self._jacobian(rows, frames, end), error, damping_squared)
         return error.reshape(*batch, -1), step.reshape(*batch, -1)
 
+    def target_features(self, targets: torch.Tensor) -> torch.Tensor:
+        """`ChainArm.target_features` (..., condition_dim), the rotation's columns from `_target_rotations`'s one
+        product where the arm's quaternion_to_matrix takes a dozen operations."""
+        arm = self.arm
+        if arm.target == "position":
+            return arm.target_features(targets)
+        rows = targets.reshape(-1, targets.shape[-1])
+        rotation = self._target_rotations(rows)
+        features = torch.cat((rows[:, :3] / arm.span, rotation[:, :, 0], rotation[:, :, 1]), dim=-1)
+        return features.reshape(*targets.shape[:-1], -1)
+
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """`ChainArm.tip_and_rotation_errors`: the position and (pose targets) rotation errors, in float64."""
         rows, targets, batch = self._rows(self.arm._as_joints(joints).double(), targets)
