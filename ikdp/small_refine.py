@@ -174,14 +174,20 @@ class SmallRefine:
         damping_squared = damping**2
         both_goals = None
         first_position = None
+        carried = None  # the kinematics of the poses a step chose, where comparing two candidates computed them
         for index in range(steps + 1):
             if index == steps:
                 if not scored:
                     break
                 if output_dtype != torch.float64:  # the errors of the poses as returned
                     joints = torch.from_numpy(joints).to(output_dtype).double().numpy()
-            frames, end = self.frames(joints)
-            error = self.task_error(end, goals, rotations)
+                    carried = None
+            if carried is None:
+                frames, end = self.frames(joints)
+                error = self.task_error(end, goals, rotations)
+            else:
+                frames, end, error = carried
+                carried = None
             parts = error.reshape(len(joints), -1, 3)  # refine.clamp_task_error
             norms = norm(parts)
             if first_position is None:
@@ -205,10 +211,18 @@ class SmallRefine:
                         np.concatenate((goals, goals)),
                         None if rotations is None else np.concatenate((rotations, rotations)),
                     )
-                _, ends = self.frames(np.concatenate((moved, held)))
-                misses = norm(self.task_error(ends, *both_goals)).reshape(2, -1)
+                both_frames, ends = self.frames(np.concatenate((moved, held)))
+                both_errors = self.task_error(ends, *both_goals)
+                misses = norm(both_errors).reshape(2, -1)
                 take = blocked.any(axis=-1) & (misses[1] < misses[0])
                 moved = np.where(take[:, None], held, moved)
+                # the next step starts from these poses: their kinematics are here already (one pass fewer)
+                count = len(joints)
+                carried = (
+                    np.where(take[None, :, None, None], both_frames[:, count:], both_frames[:, :count]),
+                    np.where(take[:, None, None], ends[count:], ends[:count]),
+                    np.where(take[:, None], both_errors[count:], both_errors[:count]),
+                )
             joints = moved
         refined = torch.from_numpy(joints)
         if not scored:
