@@ -545,9 +545,9 @@ class ChainArm(JointLimits):
         if self.target == "position":
             return tensor
         norms = tensor[:, 3:].double().norm(dim=-1)
-        bad = torch.nonzero((norms - 1).abs() > QUATERNION_TOLERANCE).flatten()
-        if len(bad):
-            row = int(bad[0])
+        bad = (norms - 1).abs() > QUATERNION_TOLERANCE
+        if bool(bad.any()):  # the row named only then: nonzero costs more than the check
+            row = int(torch.nonzero(bad)[0, 0])
             raise ValueError(
                 f"targets: row {row} has quaternion {tensor[row, 3:].tolist()} of norm {float(norms[row]):.6g}, "
                 f"expected a unit quaternion (w, x, y, z)"
