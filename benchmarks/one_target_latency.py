@@ -51,7 +51,7 @@ PANDA_FAST = "ikdp_panda_fast"
 MODELS = {
     "ikdp_n4": {"sampler": "ddim", "steps": 2, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
     PANDA_FAST: {"sampler": "ddim", "steps": 1, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
-    "ikdp_z1": {"sampler": "ddim", "steps": 2, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
+    "ikdp_z1": {"sampler": "ddim", "steps": 1, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
 }
 
 
