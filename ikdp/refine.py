@@ -189,7 +189,8 @@ def damped_least_squares(
 
 def every_target_reached(arm, error: torch.Tensor) -> bool:
     """error (B, K, E) the task error of each target's K poses -> whether each target has one within the arm's
-    tolerances: the position part's norm is the position error, the rotation part's the rotation angle."""
+    tolerances: the position part's norm is the position error, the rotation part's the rotation angle (a tree's
+    stacked effectors: their norms together, no smaller than the worst effector's, so it stops no earlier)."""
     within = error[..., : arm.position_dim].norm(dim=-1) < arm.position_tolerance
     if error.shape[-1] > arm.position_dim:
         within &= error[..., arm.position_dim :].norm(dim=-1) < arm.rotation_tolerance
