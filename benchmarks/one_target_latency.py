@@ -4,9 +4,11 @@ and a 1000-step stream, for the planar arm, the Panda and the Z1, beside pytorch
     OMP_NUM_THREADS=1 python -m benchmarks.one_target_latency
 
 For each model, `targets` held-out targets (the end effector of uniform poses within the limits) are solved one
-call each, K = 16, by the model's fastest verified pipeline (`MODELS`), through `solver.solve` twice per target
-in turn: as it runs (`fused`: a few poses on a CPU take the fused kinematics of ikdp/fused_chain.py) and with
-the fused path switched off (`general`: the code before it), so that the machine's load hits both alike. The
+call each, K = 16, by the model's fastest verified pipeline (`MODELS`: its refinement stops once a pose is within
+the tolerances), through `solver.solve` three times per target in turn: as it runs (`fused`: a few poses on a CPU
+take the fused kinematics of ikdp/fused_chain.py, the network's condition from its table), the same through every
+refinement step (`every step`), and with the fused path switched off (`general`: the code before it), so that the
+machine's load hits all alike. The
 same targets in one batch call give the batch figure (the fused path leaves it alone: above FUSED_ROWS poses).
 A target is solved when one of its poses is within the arm's tolerances (1 mm and 1 degree on a robot).
 pytorch_kinematics' PseudoInverseIK (16 retries x 50 iterations, its solver built once) answers the same
@@ -44,11 +46,12 @@ RESULTS = Path(__file__).resolve().parent / "results" / "one_target_latency.json
 
 # the 1-step seed of the fastest CPU Panda pipeline (checkpoints/README.md), under its shipped name
 PANDA_FAST = "ikdp_panda_fast"
-# model -> solve's options: each model's fastest pipeline at >= 99.5 % of targets within the tolerances
+# model -> solve's options: each model's fastest pipeline at >= 99.5 % of targets within the tolerances; the
+# refinement stops once one of the K poses is within them (at most 4 steps)
 MODELS = {
-    "ikdp_n4": {"sampler": "ddim", "steps": 2, "refine_steps": 4, "restart_steps": 10},
-    PANDA_FAST: {"sampler": "ddim", "steps": 1, "refine_steps": 4, "restart_steps": 10},
-    "ikdp_z1": {"sampler": "ddim", "steps": 2, "refine_steps": 4, "restart_steps": 10},
+    "ikdp_n4": {"sampler": "ddim", "steps": 2, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
+    PANDA_FAST: {"sampler": "ddim", "steps": 1, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
+    "ikdp_z1": {"sampler": "ddim", "steps": 1, "refine_steps": 4, "restart_steps": 10, "stop_when_reached": True},
 }
 
 
@@ -104,16 +107,23 @@ def timing_row(seconds: list[float], solved: torch.Tensor | None = None, valid: 
 
 
 def one_target_rows(solver, targets: torch.Tensor, options: dict, samples: int) -> dict:
-    """The fused and general solves, one target a call, in turn; then the whole batch in one call."""
+    """The fused and general solves, and the fused one through every refinement step, one target a call, in turn;
+    then the whole batch in one call."""
     arm = solver.arm
-    seconds = {"IKDP solve, fused": [], "IKDP solve, general (before)": []}
+    every_step = {**options, "stop_when_reached": False}
+    seconds = {"IKDP solve, fused": [], "IKDP solve, fused, every step": [], "IKDP solve, general (before)": []}
     answers = {label: [] for label in seconds}
     for index in range(len(targets)):
         for label in seconds:
             generator = torch.Generator().manual_seed(index)
             with general_path() if "general" in label else _nothing():
                 started = time.perf_counter()
-                out = solver.solve(targets[index : index + 1], num_samples=samples, generator=generator, **options)
+                out = solver.solve(
+                    targets[index : index + 1],
+                    num_samples=samples,
+                    generator=generator,
+                    **(every_step if "every step" in label else options),
+                )
                 seconds[label].append(time.perf_counter() - started)
             answers[label].append(out.angles)
     rows = {}
@@ -240,7 +250,8 @@ def stream_rows(solver, config: LatencyConfig) -> dict:
             "largest_jump_rad": largest_jump(arm, start, angles),
             "fallbacks": stream.fallbacks,
         }
-    options = {key: value for key, value in MODELS.get(config_name(solver), {}).items() if key != "restart_steps"}
+    options = MODELS.get(config_name(solver), {})
+    options = {key: value for key, value in options.items() if key not in ("restart_steps", "stop_when_reached")}
     started = time.perf_counter()
     tracked = solver.track(path[: config.track_steps], start, num_samples=config.samples, **options)
     elapsed = time.perf_counter() - started

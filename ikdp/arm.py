@@ -156,6 +156,12 @@ class PlanarArm:
         """The constraints a solve runs: those given (a tree adds its self-collision check)."""
         return list(constraints)
 
+    def refine_scored(
+        self, headings: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
+    ) -> tuple[torch.Tensor, None]:
+        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
+        return damped_least_squares(self, headings, targets, steps=steps, until_reached=until_reached), None
+
     def errors_by_effector(self, headings: torch.Tensor, targets: torch.Tensor) -> None:
         """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""
         return None

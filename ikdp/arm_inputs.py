@@ -32,8 +32,8 @@ def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
     if tensor.ndim != 2 or tensor.shape[1] != target_dim or tensor.shape[0] == 0:
         hint = "; wrap one target as [[...]]" if tensor.ndim == 1 else ""
         raise ValueError(f"targets: expected shape (B, {target_dim}) with B >= 1, got {tuple(tensor.shape)}{hint}")
-    bad_rows = torch.nonzero(~torch.isfinite(tensor).all(dim=1)).flatten()
-    if len(bad_rows):
-        row = int(bad_rows[0])
+    finite = torch.isfinite(tensor).all(dim=1)
+    if not bool(finite.all()):  # the rows named only then: nonzero costs more than the check
+        row = int(torch.nonzero(~finite)[0, 0])
         raise ValueError(f"targets: row {row} is {tensor[row].tolist()}, NaN or inf is not a target")
     return tensor

@@ -503,6 +503,12 @@ class ChainArm(JointLimits):
         """`refine.damped_least_squares` on this arm (FusedChain.refine: the same, fused, for a few poses)."""
         return damped_least_squares(self, joints, targets, steps=steps, task=task)
 
+    def refine_scored(
+        self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
+    ) -> tuple[torch.Tensor, None]:
+        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
+        return damped_least_squares(self, joints, targets, steps=steps, until_reached=until_reached), None
+
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """`position_error` and, for pose targets (..., 7), `rotation_error`, from one float64 kinematics pass."""
         rotation, position = self.end_effector_frame(self._as_joints(joints).double())
@@ -543,9 +549,9 @@ class ChainArm(JointLimits):
         if self.target == "position":
             return tensor
         norms = tensor[:, 3:].double().norm(dim=-1)
-        bad = torch.nonzero((norms - 1).abs() > QUATERNION_TOLERANCE).flatten()
-        if len(bad):
-            row = int(bad[0])
+        bad = (norms - 1).abs() > QUATERNION_TOLERANCE
+        if bool(bad.any()):  # the row named only then: nonzero costs more than the check
+            row = int(torch.nonzero(bad)[0, 0])
             raise ValueError(
                 f"targets: row {row} has quaternion {tensor[row, 3:].tolist()} of norm {float(norms[row]):.6g}, "
                 f"expected a unit quaternion (w, x, y, z)"

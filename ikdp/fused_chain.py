@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import torch
 
-from ikdp.refine import RefineTask, damped_least_squares
-from ikdp.small_refine import SmallRefine
+from ikdp.refine import RefineTask, damped_least_squares, dls_step
+from ikdp.small_refine import RefineScores, SmallRefine
 
 FUSED_ROWS = 256  # poses a call: at most this many go through FusedChain on a CPU
 
@@ -252,6 +252,30 @@ class FusedChain:
         jacobian = self._jacobian(rows, frames, end)
         return error.reshape(*batch, -1), jacobian.reshape(*batch, *jacobian.shape[1:])
 
+    def task_error_and_dls_step(self, joints, targets: torch.Tensor, damping_squared: float):
+        """joints (..., J), targets broadcast to them -> `task_error` (..., E) and `refine.dls_step`'s step (..., J):
+        on a CPU by NumPy's kernels in float64 (half the time of torch's for one target's K poses), returned in the
+        joints' dtype."""
+        rows, targets, batch = self._rows(joints, targets)
+        if rows.device.type == "cpu":
+            error, step = self.small_refine().error_and_step(rows, targets, damping_squared)
+        else:
+            frames, end = self._frames(rows)
+            error = self._task_error(end, targets, self._rotations_of(targets))
+            step = dls_step(self._jacobian(rows, frames, end), error, damping_squared)
+        return error.reshape(*batch, -1), step.reshape(*batch, -1)
+
+    def target_features(self, targets: torch.Tensor) -> torch.Tensor:
+        """`ChainArm.target_features` (..., condition_dim), the rotation's columns from `_target_rotations`'s one
+        product where the arm's quaternion_to_matrix takes a dozen operations."""
+        arm = self.arm
+        if arm.target == "position":
+            return arm.target_features(targets)
+        rows = targets.reshape(-1, targets.shape[-1])
+        rotation = self._target_rotations(rows)
+        features = torch.cat((rows[:, :3] / arm.span, rotation[:, :, 0], rotation[:, :, 1]), dim=-1)
+        return features.reshape(*targets.shape[:-1], -1)
+
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """`ChainArm.tip_and_rotation_errors`: the position and (pose targets) rotation errors, in float64."""
         rows, targets, batch = self._rows(self.arm._as_joints(joints).double(), targets)
@@ -310,3 +334,48 @@ class FusedChain:
         rows, targets, _ = self._rows(joints, targets)
         refined = self.small_refine().refine(rows, targets, steps, damping, max_miss_fraction)
         return refined.to(dtype).reshape(*batch, -1)
+
+    def refine_scored(
+        self,
+        joints: torch.Tensor,
+        targets: torch.Tensor,
+        *,
+        steps: int,
+        damping: float = 1e-3,
+        max_miss_fraction: float = 0.2,
+        until_reached: bool = False,
+    ) -> tuple[torch.Tensor, RefineScores | None]:
+        """`refine` (no task) of joints (B, K, J) toward targets (B, K, target_dim), and on a CPU the errors its own
+        kinematics measured on the way (`RefineScores`, each (B, K)): a one-target solve's error checks read them
+        where they would take two more kinematics passes. Elsewhere (None) the caller measures them.
+        `until_reached`: stop before a step once every target has a pose within the arm's tolerances."""
+        if joints.device.type != "cpu":
+            refined = damped_least_squares(
+                self,
+                joints,
+                targets,
+                steps=steps,
+                damping=damping,
+                max_miss_fraction=max_miss_fraction,
+                until_reached=until_reached,
+            )
+            return refined, None
+        if not isinstance(steps, int) or steps < 0:
+            raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
+        dtype, batch = joints.dtype, joints.shape[:-1]
+        rows, targets, _ = self._rows(joints, targets)
+        refined, scores = self.small_refine().refine_scored(
+            rows,
+            targets,
+            steps,
+            damping,
+            max_miss_fraction,
+            scored=True,
+            output_dtype=dtype,
+            until_within=(joints.shape[-2], self.arm.position_tolerance, self.arm.rotation_tolerance)
+            if until_reached
+            else None,
+        )
+        shaped = lambda value: None if value is None else value.reshape(batch)  # noqa: E731
+        scores = RefineScores(shaped(scores.position), shaped(scores.rotation), shaped(scores.first_position))
+        return refined.to(dtype).reshape(*batch, -1), scores

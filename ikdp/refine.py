@@ -128,6 +128,7 @@ def damped_least_squares(
     task: RefineTask | None = None,
     sync_free: bool = False,
     iteration=None,
+    until_reached: bool = False,
 ) -> torch.Tensor:
     """joints (..., J), targets (..., target_dim) -> refined joints (..., J), within the arm's limits.
 
@@ -142,6 +143,10 @@ def damped_least_squares(
     cannot capture): each step is `sync_free_iteration`, or `iteration`, the same function compiled
     (torch.compile: ikdp/cuda_graph.py's fused capture). The same poses as the default, which solves the step
     without the blocked joints for the blocked poses alone (cheaper on a CPU).
+
+    `until_reached` (no task; joints (B, K, J)): stop before a step once each of the B targets has one of its K
+    poses within the arm's tolerances, as that step's error says: the answer in fewer steps, its other poses
+    refined less.
     """
     if not isinstance(steps, int) or steps < 0:
         raise ValueError(f"refine steps: expected a non-negative integer, got {steps!r}")
@@ -160,6 +165,8 @@ def damped_least_squares(
         penetrations = None
         if task is None:
             error, jacobian = arm.task_error_and_jacobian(joints, targets)
+            if until_reached and every_target_reached(arm, error):
+                break
             error = clamp_task_error(error, arm.position_dim, max_position, math.pi / 4)
         else:
             error, jacobian = task.linearize(joints, targets)
@@ -178,6 +185,16 @@ def damped_least_squares(
                 moved = better_of(arm, targets, moved, arm.normalize_joints(joints + held_step), task)
         joints = moved if task is None else task.hold(moved)
     return joints.to(dtype)
+
+
+def every_target_reached(arm, error: torch.Tensor) -> bool:
+    """error (B, K, E) the task error of each target's K poses -> whether each target has one within the arm's
+    tolerances: the position part's norm is the position error, the rotation part's the rotation angle (a tree's
+    stacked effectors: their norms together, no smaller than the worst effector's, so it stops no earlier)."""
+    within = error[..., : arm.position_dim].norm(dim=-1) < arm.position_tolerance
+    if error.shape[-1] > arm.position_dim:
+        within &= error[..., arm.position_dim :].norm(dim=-1) < arm.rotation_tolerance
+    return bool(within.reshape(-1, within.shape[-1]).any(dim=-1).all())
 
 
 def sync_free_iteration(

@@ -41,8 +41,12 @@ def restart_unreached(
     steps: int,
     generator: torch.Generator | None = None,
     constraints=None,
+    within: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """angles (B, K, J), goals (B, K, target_dim) -> (angles, restarted (B,)).
+
+    `within` (B, K): `within_tolerances` of the angles when the caller measured it already (a one-target solve's
+    refinement does on its way); None: measured here.
 
     Each target none of whose K poses is `within_tolerances` gets K fresh uniform poses within the limits
     (`arm.random_poses`), refined by `steps` damped-least-squares steps toward its goals. Each of its poses
@@ -54,7 +58,9 @@ def restart_unreached(
     a partial target's free rows left free), cut to the restarted targets' rows (`ConstraintSet.of_targets`); with a
     pose to stay near (NearPose) they start from it and a growing share of the way to the uniform draws.
     """
-    restarted = ~within_tolerances(arm, angles, goals, constraints).any(dim=-1)
+    if within is None:
+        within = within_tolerances(arm, angles, goals, constraints)
+    restarted = ~within.any(dim=-1)
     if steps == 0 or not bool(restarted.any()):
         return angles, torch.zeros_like(restarted)
     rows, samples = int(restarted.sum()), angles.shape[1]

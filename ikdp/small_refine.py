@@ -11,6 +11,8 @@ loop's.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 
@@ -129,23 +131,72 @@ class SmallRefine:
         angle = 2 * np.arctan2(norm(quaternion[:, 1:])[:, 0], quaternion[:, 0])
         return position, torch.from_numpy(angle).float()
 
+    def error_and_step(self, rows: torch.Tensor, targets: torch.Tensor, damping_squared: float):
+        """rows (N, J), targets (N, target_dim) -> the task error (N, E) and the damped least-squares step
+        (N, J), computed in float64, returned in the rows' dtype: what the robot denoiser reads as features."""
+        joints = rows.detach().double().numpy()
+        goals = targets.detach().double().numpy()
+        frames, end = self.frames(joints)
+        error = self.task_error(end, goals, self.target_rotations(goals) if self.pose_targets else None)
+        step = self.dls(self.jacobian(joints, frames, end), error, damping_squared)
+        return torch.from_numpy(error).to(rows.dtype), torch.from_numpy(step).to(rows.dtype)
+
     # --- the loop --------------------------------------------------------------------------------
     def refine(
         self, rows: torch.Tensor, targets: torch.Tensor, steps: int, damping: float, max_miss_fraction: float
     ) -> torch.Tensor:
         """rows (N, J), targets (N, target_dim), any float dtype on the CPU -> refined rows (N, J) in float64."""
+        return self.refine_scored(rows, targets, steps, damping, max_miss_fraction)[0]
+
+    def refine_scored(
+        self,
+        rows: torch.Tensor,
+        targets: torch.Tensor,
+        steps: int,
+        damping: float,
+        max_miss_fraction: float,
+        *,
+        scored: bool = False,
+        output_dtype: torch.dtype = torch.float64,
+        until_within: tuple[int, float, float] | None = None,
+    ) -> tuple[torch.Tensor, RefineScores | None]:
+        """`refine`, and with `scored` the errors the loop's own kinematics give on the way (`RefineScores`): the
+        given poses' position errors from its first pass, the refined poses' errors from one more pass, on the poses
+        rounded to `output_dtype` as returned. A solve's checks then need no kinematics of their own.
+
+        `until_within` (K, position tolerance, rotation tolerance): stop before a step once each target (K
+        consecutive rows) has a pose within both, as every step's error already says (its parts' norms are the
+        position error and the rotation angle); the scores are then those of the poses before rounding."""
         joints = rows.detach().double().numpy()
         goals = targets.detach().double().numpy()
         rotations = self.target_rotations(goals) if self.pose_targets else None
         limits = np.array([max_miss_fraction * self.span, np.pi / 4])[: 2 if self.pose_targets else 1, None]
         damping_squared = damping**2
         both_goals = None
-        for _ in range(steps):
-            frames, end = self.frames(joints)
-            error = self.task_error(end, goals, rotations)
-            jacobian = self.jacobian(joints, frames, end)
+        first_position = None
+        carried = None  # the kinematics of the poses a step chose, where comparing two candidates computed them
+        for index in range(steps + 1):
+            if index == steps:
+                if not scored:
+                    break
+                if output_dtype != torch.float64:  # the errors of the poses as returned
+                    joints = torch.from_numpy(joints).to(output_dtype).double().numpy()
+                    carried = None
+            if carried is None:
+                frames, end = self.frames(joints)
+                error = self.task_error(end, goals, rotations)
+            else:
+                frames, end, error = carried
+                carried = None
             parts = error.reshape(len(joints), -1, 3)  # refine.clamp_task_error
             norms = norm(parts)
+            if first_position is None:
+                first_position = norms[:, 0, 0]
+            if index == steps:
+                break
+            if until_within is not None and reached(norms[:, :, 0], *until_within):
+                break
+            jacobian = self.jacobian(joints, frames, end)
             error = (parts * (limits / np.maximum(norms, limits))).reshape(len(joints), -1)
             step = self.dls(jacobian, error, damping_squared)
             moved = self.normalized(joints + step)
@@ -160,9 +211,50 @@ class SmallRefine:
                         np.concatenate((goals, goals)),
                         None if rotations is None else np.concatenate((rotations, rotations)),
                     )
-                _, ends = self.frames(np.concatenate((moved, held)))
-                misses = norm(self.task_error(ends, *both_goals)).reshape(2, -1)
+                both_frames, ends = self.frames(np.concatenate((moved, held)))
+                both_errors = self.task_error(ends, *both_goals)
+                misses = norm(both_errors).reshape(2, -1)
                 take = blocked.any(axis=-1) & (misses[1] < misses[0])
                 moved = np.where(take[:, None], held, moved)
+                # the next step starts from these poses: their kinematics are here already (one pass fewer)
+                count = len(joints)
+                carried = (
+                    np.where(take[None, :, None, None], both_frames[:, count:], both_frames[:, :count]),
+                    np.where(take[:, None, None], ends[count:], ends[:count]),
+                    np.where(take[:, None], both_errors[count:], both_errors[:count]),
+                )
             joints = moved
-        return torch.from_numpy(joints)
+        refined = torch.from_numpy(joints)
+        if not scored:
+            return refined, None
+        # the rotation error's norm is its angle: quaternion_to_axis_angle's, as tip_and_rotation_errors measures it
+        final = torch.from_numpy(norms[:, :, 0]).float()
+        return refined, RefineScores(
+            position=final[:, 0],
+            rotation=final[:, 1] if self.pose_targets else None,
+            first_position=torch.from_numpy(first_position).float(),
+        )
+
+
+def reached(norms: np.ndarray, per_target: int, position_tolerance: float, rotation_tolerance: float) -> bool:
+    """norms (N, 1 or 2): each pose's position error (and rotation angle) -> whether every target, `per_target`
+    consecutive rows, has one pose within both tolerances."""
+    within = norms[:, 0] < position_tolerance
+    if norms.shape[1] > 1:
+        within &= norms[:, 1] < rotation_tolerance
+    return bool(within.reshape(-1, per_target).any(axis=1).all())
+
+
+@dataclass(frozen=True)
+class RefineScores:
+    """What the refinement's own kinematics measured, each (N,) float32: `ChainArm.tip_and_rotation_errors` of the
+    refined poses (rotation None for position targets), and the position error of the poses it started from."""
+
+    position: torch.Tensor
+    rotation: torch.Tensor | None
+    first_position: torch.Tensor
+
+    def within(self, arm) -> torch.Tensor:
+        """True where the refined pose is within the arm's tolerances, as restarts.within_tolerances says."""
+        within = self.position < arm.position_tolerance
+        return within if self.rotation is None else within & (self.rotation < arm.rotation_tolerance)

@@ -369,6 +369,12 @@ class TreeArm(JointLimits):
         """`refine.damped_least_squares` on the stacked task of every end effector."""
         return damped_least_squares(self, joints, targets, steps=steps, task=task)
 
+    def refine_scored(
+        self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
+    ) -> tuple[torch.Tensor, None]:
+        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
+        return damped_least_squares(self, joints, targets, steps=steps, until_reached=until_reached), None
+
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """The worst end effector's position error (...) and (poses) the worst rotation error (...)."""
         position, rotation = self.errors_by_effector(joints, targets)

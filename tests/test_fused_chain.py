@@ -1,6 +1,8 @@
 """FusedChain (ikdp/fused_chain.py): a chain's kinematics, Jacobian, errors and refinement as a few fused
 operations give ChainArm's numbers, and a solve through them the general path's answers."""
 
+import dataclasses
+
 import pytest
 import torch
 
@@ -173,14 +175,20 @@ def test_the_shipped_fast_pipeline_gives_the_same_answers_one_target_a_call(monk
         assert torch.equal(valid(ours), valid(theirs)) and valid(ours).any()
 
 
-def test_the_denoisers_features_from_the_fused_kinematics_are_the_arms_own(tiny_chain_checkpoint, monkeypatch):
+@pytest.mark.parametrize("limit_aware_step", [True, False])
+def test_the_denoisers_features_from_the_fused_kinematics_are_the_arms_own(
+    tiny_chain_checkpoint, monkeypatch, limit_aware_step
+):
     denoiser = ikdp.load(tiny_chain_checkpoint).model.denoiser
+    # without the limit-aware step the features need no Jacobian: the error and the step come from NumPy's kernels
+    denoiser.config = dataclasses.replace(denoiser.config, limit_aware_step=limit_aware_step)
     arm = denoiser.arm
     x = torch.randn(16, denoiser.representation.dim, generator=torch.Generator().manual_seed(3))
     targets = arm.end_effector(arm.random_poses(16, generator=torch.Generator().manual_seed(4)))
     calls = []
     fused = arm.small_batch_kinematics()
-    monkeypatch.setattr(type(fused), "task_error_and_jacobian", counted(calls, type(fused).task_error_and_jacobian))
+    for name in ("task_error_and_jacobian", "task_error_and_dls_step"):
+        monkeypatch.setattr(type(fused), name, counted(calls, getattr(type(fused), name)))
     with torch.no_grad():  # a few rows without gradients: the fused kinematics
         ours = denoiser.features_and_step(x, targets)
     assert len(calls) == 1

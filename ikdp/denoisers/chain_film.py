@@ -25,6 +25,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from ikdp.denoisers.condition_table import ConditionTable
 from ikdp.denoisers.config import DenoiserConfig, require_feature_width
 from ikdp.denoisers.embeddings import sinusoidal_embedding
 from ikdp.denoisers.film_trunk import condition_network, film_residual_pass, normed_blocks, scale_and_shift
@@ -50,6 +51,7 @@ class ChainFiLMDenoiser(nn.Module):
             raise ValueError(f"denoiser 'chain_film': expected one of {SCALED_BY_LIMITS}, got {representation.kind!r}")
         self.config = config
         self.arm = arm
+        self.condition_table = None  # ConditionTable: a few targets' conditions without gradients, once asked for
         self.int8 = None  # Int8Weights (ikdp/denoisers/int8.py) when loaded with precision="int8": sampling only
         self.representation = representation
         dim, hidden, joints = representation.dim, config.hidden, arm.num_joints
@@ -92,22 +94,32 @@ class ChainFiLMDenoiser(nn.Module):
         Rows 0..blocks-1: each block's FiLM scale and shift. The last row carries in [0, :F]
         the scale of each input feature at this t (kinematic features off at t >= kinematic_until),
         and with `dls_skip` in [1, :D] the gain of the DLS step added to the estimate.
+        A few targets without gradients on a CPU (one target's solve) read what depends on t alone from a
+        table (ikdp/denoisers/condition_table.py).
         """
+        if self.int8 is None and not torch.is_grad_enabled() and small_batch(len(t), t.device):
+            if self.condition_table is None:
+                self.condition_table = ConditionTable()
+            return self.condition_table.condition(self, t, target)
         time = sinusoidal_embedding(t, self.config.time_dim)
         embedded = torch.cat((time, self.arm.target_features(target)), dim=-1)
         condition_net = self.condition_net if self.int8 is None else self.int8.condition_net
         film = condition_net(embedded).unflatten(-1, (self.config.blocks, 2, self.config.hidden))
+        return torch.cat((scale_and_shift(film), self.feature_row(t, time)), dim=1)
+
+    def feature_row(self, t: torch.Tensor, time: torch.Tensor) -> torch.Tensor:
+        """t (M,) and its embedding (M, time_dim) -> the condition's last row (M, 1, 2, hidden) (`condition`)."""
         feature_scale = self.feature_scale.expand(len(t), -1)
         if self.config.kinematic_until > 0:
             feature_scale = feature_scale * (self.kinematic_mask | (t < self.config.kinematic_until)[:, None])
-        feature_row = torch.zeros(len(t), 1, 2, self.config.hidden, dtype=film.dtype, device=film.device)
+        feature_row = torch.zeros(len(t), 1, 2, self.config.hidden, dtype=time.dtype, device=time.device)
         feature_row[:, 0, 0, : feature_scale.shape[1]] = feature_scale
         if self.config.dls_skip:
             gain = self.step_gain_start[t][:, None] + self.step_gain(time)
             if self.config.kinematic_until > 0:  # no step where the features are off
                 gain = gain * (t < self.config.kinematic_until)[:, None]
             feature_row[:, 0, 1, : gain.shape[1]] = gain
-        return torch.cat((scale_and_shift(film), feature_row), dim=1)
+        return feature_row
 
     def features_and_step(self, x: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(M, D) noisy sample, (M, target_dim) target -> the input features (M, F): x_t, the task error and the
@@ -116,6 +128,11 @@ class ChainFiLMDenoiser(nn.Module):
         # a few rows without gradients (one target's K on a CPU): the fused kinematics, the same numbers to float
         # rounding in a tenth of the time; training and large batches keep the arm's own
         fused = not torch.is_grad_enabled() and small_batch(len(joints), joints.device)
+        if fused and not self.config.limit_aware_step:  # the error and the step alone, by NumPy's kernels
+            error, step = self.arm.small_batch_kinematics().task_error_and_dls_step(
+                joints, target, self.damping_squared
+            )
+            return torch.cat((x, error, step / self.half_range), dim=-1), step
         kinematics = self.arm.small_batch_kinematics() if fused else self.arm
         error, jacobian = kinematics.task_error_and_jacobian(joints, target)  # (M, E), (M, E, J)
         step = dls_step(jacobian, error, self.damping_squared)
