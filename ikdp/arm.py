@@ -48,6 +48,7 @@ class PlanarArm:
     kind = "planar"
     target_dim = 2  # a target is a point (x, y) for the tip
     position_dim = 2  # the leading target entries that are a position
+    space_dim = 2  # a point in the arm's space: the plane
     condition_dim = 2  # the size of target_features: what a denoiser is conditioned on
     joint_limits = None  # headings live on the circle: no limits, poses wrap
 
@@ -155,6 +156,22 @@ class PlanarArm:
     def with_default_constraints(self, constraints) -> list:
         """The constraints a solve runs: those given (a tree adds its self-collision check)."""
         return list(constraints)
+
+    def collision_spheres(self, held_joints=None) -> None:
+        """None: obstacles meet the bones themselves, segments in the plane (a robot's links are sphere covers)."""
+        if held_joints:
+            raise ValueError(f"obstacles: held_joints: a planar arm has no joints off its chain, got {held_joints!r}")
+        return None
+
+    def position_only_targets(self, constraint, targets) -> torch.Tensor:
+        """`PositionOnly`'s targets: a planar arm's targets are positions already, so it has none."""
+        from ikdp.partial_targets import require_pose_model
+
+        require_pose_model(self, constraint.name)
+
+    def bind_position_only(self, constraint):
+        """`PositionOnly.bind` (see `position_only_targets`)."""
+        self.position_only_targets(constraint, None)
 
     def refine_scored(
         self, headings: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False

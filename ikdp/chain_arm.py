@@ -32,14 +32,14 @@ from ikdp.refine import damped_least_squares
 from ikdp.robot_data import installed_copy
 from ikdp.rotations import (
     matrix_to_quaternion,
+    origin_matrix,
     quaternion_angle,
     quaternion_conjugate,
     quaternion_multiply,
     quaternion_to_axis_angle,
     quaternion_to_matrix,
-    rpy_to_matrix,
 )
-from ikdp.urdf import ChainDescription, Origin, read_chain
+from ikdp.urdf import ChainDescription, read_chain
 
 TARGET_KINDS = ("position", "pose")
 QUATERNION_TOLERANCE = 1e-3  # how far from 1 a target quaternion's norm may be before it is refused
@@ -54,19 +54,12 @@ def axis_basis(axis: torch.Tensor) -> torch.Tensor:
     return torch.stack([first, torch.linalg.cross(axis, first), axis], dim=-1)
 
 
-def origin_matrix(origin: Origin) -> list[list[float]]:
-    """A URDF origin as a 4x4 homogeneous matrix (nested lists, float64 maths)."""
-    matrix = torch.eye(4, dtype=torch.float64)
-    matrix[:3, :3] = rpy_to_matrix(torch.tensor(origin.rpy, dtype=torch.float64))
-    matrix[:3, 3] = torch.tensor(origin.xyz, dtype=torch.float64)
-    return matrix.tolist()
-
-
 class ChainArm(JointLimits):
     """A serial chain of revolute, continuous and prismatic joints; targets are positions or poses."""
 
     kind = "chain"
     position_dim = 3  # the leading target entries that are a position
+    space_dim = 3  # a point in the arm's space
 
     def __init__(
         self,
@@ -521,6 +514,25 @@ class ChainArm(JointLimits):
     def with_default_constraints(self, constraints) -> list:
         """The constraints a solve runs: those given (a tree adds its self-collision check)."""
         return list(constraints)
+
+    def collision_spheres(self, held_joints=None):
+        """The LinkSpheres obstacles meet: every moving link's sphere cover (ikdp/link_spheres.py)."""
+        from ikdp.link_spheres import link_spheres
+
+        return link_spheres(self, held_joints)
+
+    def position_only_targets(self, constraint, targets) -> torch.Tensor:
+        """`PositionOnly`'s targets (B, 7): the position given ((B, 3) or a pose's first three), an identity rotation
+        as a placeholder the partial target replaces."""
+        from ikdp.partial_targets import chain_position_only_targets
+
+        return chain_position_only_targets(self, constraint, targets)
+
+    def bind_position_only(self, constraint):
+        """`PositionOnly.bind` for one end effector: the position counts, the rotation is free."""
+        from ikdp.partial_targets import bind_chain_position_only
+
+        return bind_chain_position_only(self, constraint)
 
     def errors_by_effector(self, joints, targets: torch.Tensor) -> None:
         """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""

@@ -15,7 +15,7 @@ fingers open, 4 cm each; the Z1's gripper open), or at `held_joints` given (`ikd
 
 Fitting needs trimesh (the `[viz]` extra) and the URDF's meshes, so the result is stored:
 in memory per arm, in `ikdp/collision_spheres/` for the shipped robots (in the package, so the
-core install has them; `python -m ikdp.link_spheres panda z1` fits them again), and in ikdp's
+core install has them; `python -m ikdp.fit_link_spheres panda z1` fits them again), and in ikdp's
 cache folder for any other arm. The file is named after a hash of the arm's kinematics and the
 fitting rule's version, so a changed URDF (or rule) is fitted anew.
 """
@@ -25,7 +25,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -104,7 +103,7 @@ class HeldJoint:
     @classmethod
     def of(cls, joint) -> HeldJoint:
         """From a parsed JointDescription (ikdp/urdf.py)."""
-        from ikdp.chain_arm import origin_matrix
+        from ikdp.rotations import origin_matrix
 
         return cls(
             joint.name,
@@ -435,28 +434,3 @@ def enclosing_sphere(points: np.ndarray, iterations: int = 200) -> tuple[np.ndar
         farthest = points[np.argmax(((points - center) ** 2).sum(axis=1))]
         center = center + (farthest - center) / (iteration + 2)
     return center, float(np.sqrt(((points - center) ** 2).sum(axis=1).max()))  # every point inside, exactly
-
-
-def main(argv: list[str] | None = None) -> None:
-    """`python -m ikdp.link_spheres panda z1`: fit the named robots' covers again into the package's folder."""
-    from ikdp.robots import load_robot, robot_names
-
-    names = sys.argv[1:] if argv is None else argv
-    if not names or any(name.startswith("-") for name in names):
-        raise SystemExit(f"usage: python -m ikdp.link_spheres ROBOT [ROBOT ...], robots: {', '.join(robot_names())}")
-    for name in names:
-        try:
-            arm = load_robot(name)
-            cover = fit_sphere_cover(arm)
-        except ValueError as error:
-            raise SystemExit(f"ikdp.link_spheres: error: {error}") from None
-        path = store(arm, cover, SHIPPED_FOLDER)
-        posed = cover.posed()
-        print(
-            f"{name}: {len(posed)} spheres ({len(cover.chain)} on the chain, {len(posed) - len(cover.chain)} on "
-            f"{len(cover.hanging)} hanging links), radii {min(posed.radii):.4f} to {max(posed.radii):.4f} m -> {path}"
-        )
-
-
-if __name__ == "__main__":
-    main()

@@ -66,7 +66,7 @@ class Obstacles(Constraint):
     name: ClassVar[str] = "obstacles"
 
     def bind(self, arm, batch: int, num_samples: int) -> BoundObstacles:
-        dim = 2 if arm.kind == "planar" else 3  # a point in the arm's space (a tree's position_dim stacks its hands)
+        dim = arm.space_dim  # a point in the arm's space (a tree's position_dim stacks its hands)
         centers = finite_tensor(self.centers, "obstacles: centers")
         radii = finite_tensor(self.radii, "obstacles: radii")
         if centers.ndim not in (2, 3) or centers.shape[-1] != dim:
@@ -82,19 +82,7 @@ class Obstacles(Constraint):
         if not 0 <= self.weight <= 1:
             raise ValueError(f"obstacles: weight expected in [0, 1], got {self.weight}")
         clearance = 0.01 * arm.span if self.clearance is None else float(self.clearance)
-        spheres = None
-        if arm.kind == "planar" and self.held_joints:
-            raise ValueError(
-                f"obstacles: held_joints: a planar arm has no joints off its chain, got {self.held_joints!r}"
-            )
-        if arm.kind == "tree":
-            from ikdp.tree_spheres import tree_link_spheres
-
-            spheres = tree_link_spheres(arm, self.held_joints)
-        elif arm.kind != "planar":
-            from ikdp.link_spheres import link_spheres
-
-            spheres = link_spheres(arm, self.held_joints)
+        spheres = arm.collision_spheres(self.held_joints)
         return BoundObstacles(
             arm=arm,
             centers=per_row(centers, batch, num_samples, 2, "obstacles: centers").float(),

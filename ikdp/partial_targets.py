@@ -50,30 +50,34 @@ class PositionOnly(Constraint):
     name: ClassVar[str] = "position_only"
 
     def validate_targets(self, arm, targets) -> torch.Tensor:
-        if arm.kind == "tree":
-            from ikdp.tree_partial_targets import effector_parts, validate_tree_targets
-
-            return validate_tree_targets(arm, effector_parts(arm, self.effectors, self.name), targets)
-        self._check_chain(arm)
-        rows = validate_target_rows(targets, 3) if _width(targets) == 3 else arm.validate_targets(targets)[:, :3]
-        identity = torch.tensor([[1.0, 0.0, 0.0, 0.0]]).expand(len(rows), 4)
-        return torch.cat([rows, identity], dim=-1)
+        return arm.position_only_targets(self, targets)
 
     def bind(self, arm, batch: int, num_samples: int) -> BoundPartialTarget:
-        if arm.kind == "tree":
-            from ikdp.tree_partial_targets import BoundEffectorParts, effector_parts
+        return arm.bind_position_only(self)
 
-            parts = effector_parts(arm, self.effectors, self.name)
-            return BoundEffectorParts(arm, parts, _weight(self.weight, self.name))
-        self._check_chain(arm)
-        return BoundPartialTarget(arm, None, _weight(self.weight, self.name))
 
-    def _check_chain(self, arm) -> None:
-        require_pose_model(arm, self.name)
-        if self.effectors is not None:
-            raise ValueError(
-                f"{self.name}: effectors names the end effectors of a tree; this arm has one, got {self.effectors!r}"
-            )
+def check_one_effector(arm, constraint: PositionOnly) -> None:
+    """ValueError unless `constraint` fits an arm of one end effector: a pose model, no `effectors`."""
+    require_pose_model(arm, constraint.name)
+    if constraint.effectors is not None:
+        raise ValueError(
+            f"{constraint.name}: effectors names the end effectors of a tree; this arm has one, "
+            f"got {constraint.effectors!r}"
+        )
+
+
+def chain_position_only_targets(arm, constraint: PositionOnly, targets) -> torch.Tensor:
+    """`ChainArm.position_only_targets`: (B, 3) positions or (B, 7) poses -> (B, 7), the rotation a placeholder."""
+    check_one_effector(arm, constraint)
+    rows = validate_target_rows(targets, 3) if _width(targets) == 3 else arm.validate_targets(targets)[:, :3]
+    identity = torch.tensor([[1.0, 0.0, 0.0, 0.0]]).expand(len(rows), 4)
+    return torch.cat([rows, identity], dim=-1)
+
+
+def bind_chain_position_only(arm, constraint: PositionOnly) -> BoundPartialTarget:
+    """`ChainArm.bind_position_only`."""
+    check_one_effector(arm, constraint)
+    return BoundPartialTarget(arm, None, checked_weight(constraint.weight, constraint.name))
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,7 @@ class FreeAxis(Constraint):
         axis = finite_tensor(self.axis, "free_axis: axis")
         if axis.shape != (3,) or float(axis.norm()) < 1e-9:
             raise ValueError(f"free_axis: axis expected a non-zero vector of 3 numbers, got {axis.tolist()}")
-        return BoundPartialTarget(arm, (axis / axis.norm()).float(), _weight(self.weight, self.name))
+        return BoundPartialTarget(arm, (axis / axis.norm()).float(), checked_weight(self.weight, self.name))
 
 
 def _width(targets) -> int | None:
@@ -106,7 +110,7 @@ def _width(targets) -> int | None:
     return shape[-1] if len(shape) == 2 else None
 
 
-def _weight(weight: float, name: str) -> float:
+def checked_weight(weight: float, name: str) -> float:
     if not 0 <= weight <= 1:
         raise ValueError(f"{name}: weight expected in [0, 1], got {weight}")
     return float(weight)

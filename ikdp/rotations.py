@@ -149,3 +149,11 @@ def quaternion_to_axis_angle(quaternion: torch.Tensor) -> torch.Tensor:
 def quaternion_angle(quaternion: torch.Tensor) -> torch.Tensor:
     """The geodesic angle of a unit quaternion's rotation, (...), radians in [0, pi]."""
     return 2 * torch.atan2(quaternion[..., 1:].norm(dim=-1), quaternion[..., 0].abs())
+
+
+def origin_matrix(origin) -> list[list[float]]:
+    """A URDF origin (its `rpy` and `xyz`) as a 4x4 homogeneous matrix (nested lists, float64 maths)."""
+    matrix = torch.eye(4, dtype=torch.float64)
+    matrix[:3, :3] = rpy_to_matrix(torch.tensor(origin.rpy, dtype=torch.float64))
+    matrix[:3, 3] = torch.tensor(origin.xyz, dtype=torch.float64)
+    return matrix.tolist()

@@ -38,6 +38,7 @@ class TreeArm(JointLimits):
     """Several end effectors on one base: the movable joints of every base-to-end-effector path, each once."""
 
     kind = "tree"
+    space_dim = 3  # a point in the arm's space (position_dim stacks the hands' positions)
 
     def __init__(self, chains: list[ChainArm], *, target: str = "pose"):
         """`chains`: one ChainArm per end effector, all from the same base link, shared joints named alike."""
@@ -359,6 +360,26 @@ class TreeArm(JointLimits):
         from ikdp.self_collision import with_self_collision
 
         return with_self_collision(self, constraints)
+
+    def collision_spheres(self, held_joints=None):
+        """The LinkSpheres obstacles meet: the chains' sphere covers merged onto the tree (ikdp/tree_spheres.py)."""
+        from ikdp.tree_spheres import tree_link_spheres
+
+        return tree_link_spheres(self, held_joints)
+
+    def position_only_targets(self, constraint, targets) -> torch.Tensor:
+        """`PositionOnly(effectors=...)`'s targets: per end effector, the parts that count (tree_partial_targets)."""
+        from ikdp.tree_partial_targets import effector_parts, validate_tree_targets
+
+        return validate_tree_targets(self, effector_parts(self, constraint.effectors, constraint.name), targets)
+
+    def bind_position_only(self, constraint):
+        """`PositionOnly.bind` on a tree: each end effector's parts as `effectors` says."""
+        from ikdp.partial_targets import checked_weight
+        from ikdp.tree_partial_targets import BoundEffectorParts, effector_parts
+
+        parts = effector_parts(self, constraint.effectors, constraint.name)
+        return BoundEffectorParts(self, parts, checked_weight(constraint.weight, constraint.name))
 
     def small_batch_kinematics(self) -> TreeArm:
         """The tree itself: its chains share joints, so a few poses take the general kinematics (a chain's fused

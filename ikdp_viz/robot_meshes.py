@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from ikdp.chain_arm import origin_matrix
+from ikdp.rotations import origin_matrix
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,10 @@ import torch
 from device_recorders import RandomDraws
 
 import ikdp
-from ikdp.chain_arm import origin_matrix
 from ikdp.guidance import ConstraintSet
 from ikdp.link_spheres import SHIPPED_FOLDER, arm_key, link_spheres, sphere_cover
 from ikdp.refine import damped_least_squares, null_space_step
+from ikdp.rotations import origin_matrix
 from ikdp.tracking import branch_switches, needed_jumps
 
 SAMPLERS = [("ddpm", None), ("ddim", 5), ("dpmpp2m", 5)]

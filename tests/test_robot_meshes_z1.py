@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from viz_helpers import shipped_solver_or_skip
 
-from ikdp.chain_arm import origin_matrix
+from ikdp.rotations import origin_matrix
 from ikdp_viz.robot_meshes import robot_meshes
 
 
