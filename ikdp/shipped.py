@@ -22,6 +22,7 @@ PURPOSES = {
     "ikdp_panda": "the most precise Panda",
     "ikdp_panda_fast": "Panda: seed of the fastest CPU pipeline (+ DLS)",
     "ikdp_z1": "the Unitree Z1, trained from its URDF",
+    "ikdp_g1": "the Unitree G1's two hands (waist and arms): a tree",
 }
 
 

@@ -130,6 +130,12 @@ def main(argv: list[str] | None = None) -> None:
     try:
         path = checkpoint_path(config.ckpt)
         solver = command_line.load_solver(PROGRAM, path, config.device)
+        from ikdp_viz.arm_kinds import arm_kind
+
+        try:
+            arm_kind(solver)  # an arm the views cannot draw is refused before the server starts
+        except ValueError as error:
+            fail(f"--ckpt {config.ckpt}: {error}")
         if config.target is not None:
             try:
                 config_target(solver, config)

@@ -16,6 +16,12 @@ ARM_KINDS = {"planar": PlanarKind(), "chain": ChainKind()}
 def arm_kind(solver) -> PlanarKind | ChainKind:
     """The viewer's handling of `solver.arm` (by its `kind`: "planar" or "chain")."""
     kind = getattr(solver.arm, "kind", "planar")
+    if kind == "tree":  # several end effectors: one gizmo, trail and readout per hand, which the views lack
+        raise ValueError(
+            f"the viewer draws planar arms and robots with one end effector; this model's arm is a tree of "
+            f"{len(solver.arm.ee_links)} end effectors {solver.arm.ee_links}, solved by the library "
+            f"(ikdp.load(...).solve with targets (B, {len(solver.arm.ee_links)}, {solver.arm.per_effector_dim}))"
+        )
     if kind not in ARM_KINDS:
         raise ValueError(f"solver: the viewer draws arms of kind {tuple(ARM_KINDS)}, got {kind!r}")
     return ARM_KINDS[kind]
