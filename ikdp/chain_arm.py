@@ -515,6 +515,11 @@ class ChainArm(JointLimits):
         """The constraints a solve runs: those given (a tree adds its self-collision check)."""
         return list(constraints)
 
+    @property
+    def chains(self) -> tuple[ChainArm]:
+        """The serial chains of this arm: itself (a TreeArm has one per end effector)."""
+        return (self,)
+
     def collision_spheres(self, held_joints=None):
         """The LinkSpheres obstacles meet: every moving link's sphere cover (ikdp/link_spheres.py)."""
         from ikdp.link_spheres import link_spheres
