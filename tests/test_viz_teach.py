@@ -6,6 +6,8 @@ import pytest
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
 from ikdp_viz.glossary import GLOSSARY, define, glossary_markdown
 from ikdp_viz.model_words import model_words
+from ikdp_viz.noise_it import FORWARD, forward_solved, is_forward
+from ikdp_viz.same_noise import Rerun, largest_move_degrees, rerun_seed
 from ikdp_viz.scene import state_labels
 from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data, visited_count
 from ikdp_viz.tour import TOUR, TWO_LINK_MODEL, tour_markdown
@@ -74,3 +76,37 @@ def test_model_box_speaks_a_users_language():
     assert "(p95; DDPM, one sample per target, no polish)" in text and "ddpm raw" not in text
     assert "land in 2 steps" in text
     assert "student" not in model_words(2, (1.0, 0.5), 20, {}) and "How well" not in model_words(2, (1.0, 0.5), 20, {})
+
+
+def test_rerun_seeds_and_the_moved_words():
+    assert rerun_seed(0, 1) != rerun_seed(0, 2) and rerun_seed(0, 1) != 1  # never the comparison's seed + 1
+    with pytest.raises(ValueError, match="run: expected a rerun numbered from 1, got 0"):
+        rerun_seed(5, 0)
+    before = np.array([[3.1, 0.0], [0.5, -1.0]])
+    after = np.array([[-3.1, 0.0], [0.5, -1.0]])  # 3.1 and -3.1 rad are 0.08 rad apart, not 6.2
+    assert largest_move_degrees(before, after) == pytest.approx(np.degrees(2 * np.pi - 6.2))
+    assert largest_move_degrees(before, before) == 0.0
+    with pytest.raises(ValueError, match=r"current: expected poses of shape \(2, 2\)"):
+        largest_move_degrees(before, after[:1])
+    text = Rerun(2, "ddpm", 12.34, "ddim", 0.0).text()
+    assert text.startswith("**Again from the same x_T**, run 3: ddpm landed elsewhere: a joint moved by 12.3°")
+    assert "beside it, ddim landed on the same poses as the run before" in text
+
+
+def test_noise_it_takes_the_poses_on_screen_to_pure_noise_on_the_same_slider():
+    import ikdp
+    from ikdp_viz.solving import SolveRequest, solve
+
+    solver = ikdp.load("ikdp_n4")
+    request = SolveRequest(
+        solver=solver, target=np.array([2.0, 1.0]), num_samples=4, sampler="ddim", steps=10, refine_steps=0,
+        seed=0, arrival=0.0, animate=False,
+    )  # fmt: skip
+    solved = solve(request)
+    forward = forward_solved(solved, seed=3)
+    assert is_forward(forward) and not is_forward(solved)
+    view = forward.view
+    assert view.num_states == 81 and view.labels[0] == 80 and view.labels[-1] == 0  # the slider's t = T .. 0
+    np.testing.assert_allclose(view.joints[-1], solved.view.final_joints, atol=1e-5)  # t = 0: the poses on screen
+    assert np.median(view.tip_error[0]) > 0.5 > np.median(view.tip_error[-1])  # pure noise misses the target
+    assert forward.request.sampler == FORWARD
