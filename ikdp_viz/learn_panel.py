@@ -85,7 +85,8 @@ def build_compare(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
     return gui.add_dropdown(
         "compare with", COMPARE_CHOICES, initial_value="off",
         hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn beside with its own "
-        "trail; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ follow the deterministic ODE; "
+        "trail, in the same colours; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ "
+        "follow the deterministic ODE (ordinary differential equation: a noise-free path from x_T to a pose); "
         "teacher: the teacher's deterministic run a distilled student is trained to match; "
         "student: the student's few steps",
     )  # fmt: skip

@@ -13,6 +13,7 @@ import numpy as np
 import viser
 import viser.uplot
 
+from ikdp_viz.glossary import define
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
 from ikdp_viz.learn_panel import (
     LearnControls,
@@ -22,6 +23,14 @@ from ikdp_viz.learn_panel import (
     build_share_button,
     build_target_inputs,
     build_trail_of,
+)
+from ikdp_viz.schedule_plot import schedule_curves
+from ikdp_viz.teach_panel import (
+    TeachControls,
+    build_rerun_controls,
+    build_schedule_folder,
+    build_tour_controls,
+    build_words_folder,
 )
 
 MAX_SAMPLES = 64
@@ -98,6 +107,7 @@ class Panel:
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
     learn: LearnControls  # what makes the denoising readable (learn_panel.py)
+    teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teach_panel.py)
 
 
 def build_panel(
@@ -109,11 +119,14 @@ def build_panel(
     checkpoint_labels: tuple[str, ...],
     checkpoint_label: str,
     model_text: str,
+    alphas_cumprod,
 ) -> Panel:
+    """`alphas_cumprod` (T,): the model's schedule, which the Noise schedule folder plots."""
     # The panel in a column of its own beside the canvas, not floating over it: the canvas has a quarter fewer
     # pixels and the page stops compositing the panel over each frame (software WebGL, K = 16 animating:
     # 11.7 and 12.7 frames/s floating, 14.2 to 17.0 docked; docs/viewer.md, "Frames in the page").
     gui.main_panel.dock_right()
+    tour = build_tour_controls(gui)
     with gui.add_folder("Target"):
         target_text = gui.add_markdown("")
         target_inputs = build_target_inputs(gui)
@@ -134,19 +147,20 @@ def build_panel(
             "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
         )
         trail_of = build_trail_of(gui)
-        show_estimate = gui.add_checkbox(
-            "show x̂0", False, hint="Ghosted in purple: the denoiser's estimate of the final pose at the step shown"
-        )
+        show_estimate = gui.add_checkbox("show x̂0", False, hint="Ghosted in purple at the step shown: " + define("x̂0"))
         prior_button = gui.add_button(
             "Draw from the prior", icon=viser.Icon.DICE,
-            hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
+            hint="K poses, in brown until the next solve, of the poses the model was trained on, before any target: "
+            "p(pose), where the samples below are p(pose | target). " + define("prior"),
         )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+        noise_it, again, again_text = build_rerun_controls(gui)
         # in the folder open at the start, so the teacher's full denoising is one click away (a model with a student)
         teacher_student = gui.add_button(
             "Show the teacher", icon=viser.Icon.SCHOOL, visible=False,
             hint="The model's distilled few-step student, or the teacher's full DDPM it was distilled from",
         )  # fmt: skip
+    schedule = build_schedule_folder(gui, schedule_curves(alphas_cumprod))
     legend = build_legend(gui)
     joint_space = build_joint_space_controls(gui)
     with gui.add_folder("Sampling"):
@@ -157,8 +171,8 @@ def build_panel(
         )  # fmt: skip
         sampler = gui.add_dropdown(
             "sampler", sampler_names, initial_value=sampler_names[0],
-            hint="student: the model's few-step student (distilled); ddpm: the paper's full denoising, all T steps; "
-            "ddim, dpmpp2m: fewer steps of the same model",
+            hint="; ".join(define(term) for term in ("DDPM", "DDIM", "DPM-Solver++", "student"))
+            + " (dpmpp2m is DPM-Solver++; ancestral: DDPM's noisy update on fewer steps)",
         )  # fmt: skip
         compare = build_compare(gui)
         steps = gui.add_slider(
@@ -167,9 +181,7 @@ def build_panel(
         )  # fmt: skip
         seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
         new_seed = gui.add_checkbox("new seed each move", False)
-        refine = gui.add_checkbox(
-            "refine (DLS)", False, hint="Damped-least-squares polish, drawn in teal beside the raw pose"
-        )
+        refine = gui.add_checkbox("refine (DLS)", False, hint="Drawn in teal beside the raw pose: " + define("DLS"))
         refine_steps = gui.add_slider(
             "refine steps", min=1, max=50, step=1, initial_value=DEFAULT_REFINE_STEPS, disabled=True
         )
@@ -203,9 +215,11 @@ def build_panel(
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
+    words = build_words_folder(gui)
+    teach = TeachControls(tour, noise_it, again, again_text, schedule, words)
     learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs, compare)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, teacher_student, steps, seed, new_seed, refine,
-        refine_steps, readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn,
+        refine_steps, readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn, teach,
     )  # fmt: skip

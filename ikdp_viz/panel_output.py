@@ -16,6 +16,7 @@ from ikdp_viz.clock import CLOCK_CHOICES, clock_note, state_offsets
 from ikdp_viz.frame import Frame
 from ikdp_viz.legend import Entry, legend_html
 from ikdp_viz.panel import Panel, plot_axes, plot_scales
+from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data
 from ikdp_viz.style import COMPARE_STROKE
 
 
@@ -28,6 +29,7 @@ class PanelOutput:
         self._chart_compared: str | None = None  # the sampler whose curve the chart shows besides, if any
         self._legend: tuple[Entry, ...] | None = None
         self._chart_solve = None  # the solve the chart's scales were written for
+        self._schedule = None  # (solver, its ScheduleCurves) the schedule plot draws
 
     def frame(self, frame: Frame, kind, solver) -> None:
         """The slider, the chart and the readouts at the frame's state, and the legend of its colours."""
@@ -47,6 +49,15 @@ class PanelOutput:
         panel.plot.data = frame.chart
         panel.readout_text.content = frame.readout
         self.legend(frame.legend)
+        self.schedule(frame, solver)
+
+    def schedule(self, frame: Frame, solver) -> None:
+        """The schedule plot: the model's sigma and alphabar, the step shown, the times its sampler visits."""
+        if self._schedule is None or self._schedule[0] is not solver:
+            self._schedule = (solver, schedule_curves(solver.model.schedule.alphas_cumprod))
+        view = frame.view
+        now = float(view.labels[frame.state])
+        self.panel.teach.schedule.data = schedule_plot_data(self._schedule[1], now, view.labels)
 
     def legend(self, entries) -> None:
         entries = tuple(entries)

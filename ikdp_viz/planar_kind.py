@@ -14,7 +14,9 @@ from ikdp_viz import readouts, scene
 from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, sample_tints
 from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
 from ikdp_viz.legend import Entry, Swatch
+from ikdp_viz.model_words import model_words
 from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, TIP_DARK, TIP_FAINT, fade_colors
+from ikdp_viz.student import student_sampling
 from ikdp_viz.style import ESTIMATE, OBSTACLE, PRIOR, TARGET_RED
 
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
@@ -65,7 +67,8 @@ class PlanarKind:
         return view, scene.trail_points(view.joints)
 
     def model_text(self, solver) -> str:
-        return readouts.model_text(solver.num_links, solver.lengths, solver.timesteps, solver.metadata)
+        student_steps = None if solver.student is None else student_sampling(solver.student)[1]
+        return model_words(solver.num_links, solver.lengths, solver.timesteps, solver.metadata, student_steps)
 
     def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
         return readouts.target_text(target, clamped, solver.reach)

@@ -73,23 +73,6 @@ def solve_text(
     return "  \n".join(lines)
 
 
-def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> str:
-    """A checkpoint's arm, schedule, denoiser and the accuracy measured when it was saved."""
-    model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
-    shown_lengths = ", ".join(f"{length:g}" for length in lengths)
-    lines = [
-        f"**N** = {num_links} links (lengths {shown_lengths}), **T** = {num_timesteps}",
-        f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation "
-        f"{model.get('representation', '?')}, schedule {model.get('schedule', {}).get('kind', '?')}",
-    ]
-    if "tip_error_median" in metrics:
-        lines.append(
-            f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
-            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} bone lengths ({metrics.get('sampler', '')})"
-        )
-    return "  \n".join(lines)
-
-
 def error_range(tip_error: np.ndarray) -> tuple[int, int]:
     """Whole decades (low, high), as log10 exponents, holding every positive tip error; at least one apart."""
     positive = tip_error[tip_error > 0]

@@ -460,7 +460,7 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     assert app.solver.num_links == 2 and app.solved.view.num_links == 2
     assert app.links.points.shape == (16 * 2, 2, 3) and app.joints.batched_positions.shape == (16 * 3, 3)
     assert app.panel.timestep.max == 12 and app.solved.view.num_states == 13
-    assert "**N** = 2 links" in app.panel.model_text.content
+    assert "**A 2-link planar arm** (N = 2)" in app.panel.model_text.content
     app.panel.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
     assert app.solver.num_links == 2 and app.panel.checkpoint.value == "two.pt"
     assert "Could not load" in app.panel.model_text.content and "junk.pt" in app.panel.model_text.content

@@ -5,9 +5,10 @@ import pytest
 
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
 from ikdp_viz.glossary import GLOSSARY, define, glossary_markdown
+from ikdp_viz.joint_space_words import branch_name, held_text, joint_space_title
 from ikdp_viz.model_words import model_words
 from ikdp_viz.noise_it import FORWARD, forward_solved, is_forward
-from ikdp_viz.same_noise import Rerun, largest_move_degrees, rerun_seed
+from ikdp_viz.same_noise import Rerun, largest_move, rerun_seed
 from ikdp_viz.scene import state_labels
 from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data, visited_count
 from ikdp_viz.tour import TOUR, TWO_LINK_MODEL, tour_markdown
@@ -82,14 +83,15 @@ def test_rerun_seeds_and_the_moved_words():
     assert rerun_seed(0, 1) != rerun_seed(0, 2) and rerun_seed(0, 1) != 1  # never the comparison's seed + 1
     with pytest.raises(ValueError, match="run: expected a rerun numbered from 1, got 0"):
         rerun_seed(5, 0)
-    before = np.array([[3.1, 0.0], [0.5, -1.0]])
-    after = np.array([[-3.1, 0.0], [0.5, -1.0]])  # 3.1 and -3.1 rad are 0.08 rad apart, not 6.2
-    assert largest_move_degrees(before, after) == pytest.approx(np.degrees(2 * np.pi - 6.2))
-    assert largest_move_degrees(before, before) == 0.0
-    with pytest.raises(ValueError, match=r"current: expected poses of shape \(2, 2\)"):
-        largest_move_degrees(before, after[:1])
-    text = Rerun(2, "ddpm", 12.34, "ddim", 0.0).text()
-    assert text.startswith("**Again from the same x_T**, run 3: ddpm landed elsewhere: a joint moved by 12.3°")
+    before = np.zeros((2, 3, 2))
+    after = before.copy()
+    after[1, 2] = (0.3, 0.4)
+    assert largest_move(before, after) == pytest.approx(0.5)
+    assert largest_move(before, before) == 0.0
+    with pytest.raises(ValueError, match=r"current: expected arms of shape \(2, 3, 2\)"):
+        largest_move(before, after[:1])
+    text = Rerun(2, "ddpm", 0.834, "ddim", 0.0).text()
+    assert text.startswith("**Again from the same x_T**, run 3: ddpm landed elsewhere: a joint moved 0.83")
     assert "beside it, ddim landed on the same poses as the run before" in text
 
 
@@ -110,3 +112,19 @@ def test_noise_it_takes_the_poses_on_screen_to_pure_noise_on_the_same_slider():
     np.testing.assert_allclose(view.joints[-1], solved.view.final_joints, atol=1e-5)  # t = 0: the poses on screen
     assert np.median(view.tip_error[0]) > 0.5 > np.median(view.tip_error[-1])  # pure noise misses the target
     assert forward.request.sampler == FORWARD
+
+
+def test_joint_space_words_name_the_branches_and_the_held_joints():
+    from ikdp_viz.joint_space import two_link_solutions
+
+    solutions = two_link_solutions((1.0, 1.0), (1.2, 0.8)).points  # (2, 2) the two exact poses
+    names = sorted(branch_name((1.0, 1.0), pose) for pose in solutions)
+    assert names == ["elbow down", "elbow up"]
+    up = next(pose for pose in solutions if branch_name((1.0, 1.0), pose) == "elbow up")
+    assert np.sin(up[0]) * 1.0 > 0.8 * 1.0 / 2  # its elbow sits above the line from the base to (1.2, 0.8)
+    text = held_text(("θ1", "θ2", "θ3", "θ4"), (0, 1), np.radians([10.0, 20.0, 35.0, -120.0]))
+    assert text == "arrows with θ3 = 35°, θ4 = -120° (the blue sample's, at the step shown)"
+    assert held_text(("θ1", "θ2"), (0, 1), [0.0, 1.0]) == ""
+    with pytest.raises(ValueError, match="headings: expected 4 angles, one per joint, got 2"):
+        held_text(("θ1", "θ2", "θ3", "θ4"), (0, 1), [0.0, 1.0])
+    assert "θ1 (→) and θ2 (↑)" in joint_space_title("θ1", "θ2")
