@@ -12,10 +12,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, FAINT, fade_colors, sample_colors
+from ikdp_viz.scene import ACCENT_DARK, FAINT, fade_colors, sample_colors
 
 TRAIL_CHOICES = ("highlighted", "all samples")  # the panel's "trail of" dropdown, the default first
-OTHERS_FINAL = (185, 185, 185)  # the samples not highlighted at t = 0, with the trail of the highlighted one only
+OTHERS_FINAL = (160, 160, 160)  # the samples not highlighted at t = 0, with the trail of the highlighted one only
+# The followed trail's noisy end: nearly the page's white. Its first states are random poses over half the
+# workspace; at the accent's own faint blue they were a pale tangle that read as more samples, while this
+# leaves the last states, where the pose forms, to stand out from the grey final samples.
+TRAIL_FAINT = (236, 242, 251)
+TRAIL_GAMMA = 3.0  # and it darkens later than the arms' ramp: the pale noisy half recedes behind the grey finals
 
 
 def follows_one(trail_of: str) -> bool:
@@ -36,7 +41,7 @@ def emphasis_colors(num_states: int, num_samples: int, highlight: int, trail_of:
         colors = sample_colors(num_states, num_samples, highlight)
         return colors, colors
     trail = np.repeat(fade_colors(num_states, FAINT, OTHERS_FINAL)[:, None], num_samples, axis=1)
-    trail[:, highlight] = fade_colors(num_states, ACCENT_FAINT, ACCENT_DARK)
+    trail[:, highlight] = fade_colors(num_states, TRAIL_FAINT, ACCENT_DARK, gamma=TRAIL_GAMMA)
     arms = trail.copy()
     arms[:, highlight] = ACCENT_DARK
     return arms, trail

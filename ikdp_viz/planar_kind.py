@@ -12,7 +12,7 @@ import numpy as np
 
 from ikdp_viz import readouts, scene
 from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, sample_tints
-from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
+from ikdp_viz.emphasis import OTHERS_FINAL, TRAIL_FAINT, emphasis_colors, follows_one
 from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.model_words import model_words
 from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, TIP_DARK, TIP_FAINT, fade_colors
@@ -122,7 +122,7 @@ class PlanarKind:
     def legend_entries(self, settings, *, constraint_colors: bool, view, solved) -> list[Entry]:
         """What each colour of the planar scene means now, for the panel's legend (and a recording's)."""
         if follows_one(settings.trail_of):
-            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0", True)
+            trail = Entry(Swatch(ACCENT_DARK, faint=TRAIL_FAINT), "trail of the highlighted sample: t = T → 0", True)
             others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)", True)
             # one dot at the step shown, pale near t = T and orange near t = 0: a ramp line read as a row of tips
             tips = Entry(
