@@ -26,6 +26,7 @@ from ikdp_viz.joint_space_scene import (
     model_timestep,
     square_beside,
 )
+from ikdp_viz.joint_space_words import branch_name, held_text, joint_space_title
 from ikdp_viz.planar_kind import JOINT_SPACE_DOT
 
 FRAME_STRONG = (140, 140, 140)  # the border and the zero lines
@@ -48,6 +49,8 @@ class JointSpaceNodes:
         self.fields = FieldCache()
         self.frame = self.arrows = self.solutions = self.samples = self.backing = None
         self.labels: list = []
+        self.held = None  # the label under the title: what the other joints are held at (N > 2)
+        self.branches: list = []  # the 2-link arm's "elbow up" and "elbow down", beside their crosses
         self.square: Square | None = None
         self._solutions_key: tuple | None = None  # what the solutions node shows: (solve, joints)
         self._labels_key: tuple[int, int] | None = None  # the joints the labels name
@@ -99,8 +102,12 @@ class JointSpaceNodes:
             self.solutions.colors = np.broadcast_to(np.array(self._solution_color(view), np.uint8),
                                                     self.solutions.points.shape).copy()  # fmt: skip
             self._solutions_key = (id(solved), joints)
+            self._write_branches(view, joints)
         if self._labels_key != joints:
             self._write_labels(joints)
+        held = held_text(tuple(self.controls.first.options), joints, headings[highlight]) if num_joints > 2 else ""
+        if self.held is not None and self.held.text != held:
+            self.held.text = held
 
     # -------------------------------------------------------------- building and removing
 
@@ -161,19 +168,38 @@ class JointSpaceNodes:
         self.labels = [
             add("/joint_space/x_label", first, position=(cx, cy - 1.06 * half, 0.0), anchor="top-center"),
             add("/joint_space/y_label", second, position=(cx - 1.04 * half, cy, 0.0), anchor="center-right"),
-            add("/joint_space/title", f"{first}, {second} (headings): arrows x_t → x̂0 at the step shown",
-                position=(cx, cy + 1.04 * half, 0.0), anchor="bottom-center"),
+            add("/joint_space/title", joint_space_title(first, second), position=(cx, cy + 1.04 * half, 0.0),
+                anchor="bottom-center"),
             # the ends of each axis, so the reader sees the range: -π and π are the same heading, the torus's seam
             add("/joint_space/x_low", "−π", position=(cx - half, cy - 1.01 * half, 0.0), anchor="top-center"),
             add("/joint_space/x_high", "π", position=(cx + half, cy - 1.01 * half, 0.0), anchor="top-center"),
             add("/joint_space/y_low", "−π", position=(cx - 1.01 * half, cy - half, 0.0), anchor="center-right"),
             add("/joint_space/y_high", "π", position=(cx - 1.01 * half, cy + half, 0.0), anchor="center-right"),
         ]  # fmt: skip
+        self.held = add("/joint_space/held", "", position=(cx, cy - 1.12 * half, 0.0), anchor="top-center")
+        self.labels.append(self.held)
         self._labels_key = joints
 
+    def _write_branches(self, view, joints: tuple[int, int]) -> None:
+        """A 2-link arm: each exact solution's branch named beside its cross (no names for more links, whose
+        crosses are the samples found)."""
+        for handle in self.branches:
+            handle.remove()
+        self.branches = []
+        if view.num_links != 2:
+            return
+        half = self.square.side / 2
+        for number, pose in enumerate(two_link_solutions(view.lengths, view.target).points):
+            (x, y) = self.square.place(pose[None, list(joints)])[0, :2]
+            self.branches.append(self.server.scene.add_label(
+                f"/joint_space/branch_{number}", branch_name(view.lengths, pose),
+                position=(float(x), float(y) + 0.06 * half, 0.0), anchor="bottom-center",
+            ))  # fmt: skip
+
     def _remove(self) -> None:
-        for handle in (self.frame, self.arrows, self.solutions, self.samples, self.backing, *self.labels):
+        for handle in (self.frame, self.arrows, self.solutions, self.samples, self.backing, *self.labels,
+                       *self.branches):  # fmt: skip
             if handle is not None:
                 handle.remove()
-        self.frame = self.arrows = self.solutions = self.samples = self.backing = None
-        self.labels, self.square, self._solutions_key, self._labels_key = [], None, None, None
+        self.frame = self.arrows = self.solutions = self.samples = self.backing = self.held = None
+        self.labels, self.branches, self.square, self._solutions_key, self._labels_key = [], [], None, None, None

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import viser
 
+from ikdp_viz.joint_space_words import JOINT_SPACE_HINT
+
 DEFAULT_GRID = 20  # field arrows per side of the square
 
 
@@ -56,9 +58,7 @@ class JointSpaceControls:
 def build_joint_space_controls(gui: viser.GuiApi) -> JointSpaceControls:
     with gui.add_folder("Joint space") as folder:
         show = gui.add_checkbox(
-            "joint space view", False,
-            hint="Beside the arm: two joints' angles on a torus, the solutions of the target (red), the samples at "
-            "the step shown, and the denoiser's arrows x_t -> x̂0 at that step",
+            "joint space view", False, hint=JOINT_SPACE_HINT,
         )  # fmt: skip
         options = joint_labels(2)
         first = gui.add_dropdown("x: joint", options, initial_value=options[0], disabled=True)

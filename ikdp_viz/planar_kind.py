@@ -149,7 +149,8 @@ class PlanarKind:
             return entries
         if settings.joint_space and view is not None:  # the square's marks, named apart from the target's ✕
             if view.num_links == 2:
-                entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's exact solutions"))
+                entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's two exact solutions, "
+                                     "elbow up and elbow down (named beside them)"))  # fmt: skip
             else:
                 entries.append(Entry(Swatch(JOINT_SPACE_DOT, "cross"), "joint space: the final samples"))
             entries.append(Entry(Swatch(JOINT_SPACE_DOT, "dot"), "joint space: the samples at the step shown"))

@@ -40,8 +40,8 @@ class TourStep:
 TOUR: tuple[TourStep, ...] = (
     TourStep(
         "Noise becomes a pose",
-        "Each grey arm starts as random joint angles (pure noise, t = T); step by step the network removes noise, "
-        "and at t = 0 every arm's tip reaches the red ✕, the target.",
+        "Each of the 16 arms (the blue one is followed) starts as random joint angles, pure noise at t = T; step by "
+        "step the network removes noise, and at t = 0 every arm's tip reaches the red ✕, the target.",
         TourView(show_trail=False),
         "the final samples' tips at the target",
     ),
@@ -55,7 +55,8 @@ TOUR: tuple[TourStep, ...] = (
     ),
     TourStep(
         "The error chart",
-        "The chart under Readouts plots the blue arm's tip error against t (log scale, in bone lengths): it stays "
+        "The chart under Readouts (scroll the panel down) plots the blue arm's tip error against t (log scale, "
+        "in bone lengths): it stays "
         "near 1 while noise dominates and falls in the last steps, where the pose forms; a small error at a large t "
         "is luck, not progress, since that state is still mostly noise.",
         TourView(timestep=0),
