@@ -3,8 +3,9 @@
 With "compare with" set, each solve also runs that sampler (DDIM or DPM-Solver++, the
 deterministic ODE; or DDPM) from the x_T the main sampler started from (solving.py,
 `Solver.solve(initial_noise=)`). This draws it in a second workspace to the left of the
-first, at the state nearest the same diffusion time t, coloured as the main arms are (the
-same sample followed, its trail faint to dark), with a label naming each side; the chart
+first, at the state nearest the same diffusion time t, in the main arms' style (the same sample
+followed in full width with its joints, its trail faint to dark, the others thin, a ground grid under
+both), so what differs between the two is the sampler alone, with a label naming each side; the chart
 gets the followed sample's tip error under the second sampler (`compare_curve`). The scene
 writer's thread alone calls `draw`.
 """
@@ -15,7 +16,7 @@ import numpy as np
 import viser
 
 from ikdp_viz.camera import Extent
-from ikdp_viz.emphasis import emphasis_colors, trail_rows
+from ikdp_viz.emphasis import emphasis_colors, follows_one, trail_rows
 from ikdp_viz.scene import (
     arm_placement,
     circle_segments,
@@ -86,14 +87,30 @@ class CompareNodes:
         self.nodes["links"].points = placement.link_segments + shift
         per_link = line_colors(np.repeat(self._colors[shown], compare.num_links, axis=0))[:, None]
         self.nodes["links"].colors = np.broadcast_to(per_link, (compare.num_samples * compare.num_links, 2, 3))
+        from ikdp_viz.planar_view import OTHER_PIXELS
+        from ikdp_viz.style import ARM_PIXELS
+
+        follows = follows_one(trail_of)
+        self.nodes["links"].thickness = OTHER_PIXELS if follows else ARM_PIXELS  # as the main view draws them
+        rows = slice(highlight * compare.num_links, (highlight + 1) * compare.num_links)
+        self.nodes["followed"].points = placement.link_segments[rows] + shift
+        self.nodes["followed"].colors = np.broadcast_to(per_link[rows], (compare.num_links, 2, 3))
+        self.nodes["followed"].visible = follows
+        joints = compare.num_links + 1
+        followed_joints = placement.joint_positions[highlight * joints : (highlight + 1) * joints]
+        self.nodes["joints"].batched_positions = followed_joints + shift
+        self.nodes["joints"].batched_colors = np.broadcast_to(self._colors[shown][highlight], (joints, 3))
 
     def _build(self, solver, solved, reach: float, sizes) -> None:
         from ikdp_viz import meshes
+        from ikdp_viz.planar_view import grid_under
         from ikdp_viz.style import ARM_PIXELS, LINE_PIXELS, TARGET_RED
 
         scene, x = self.server.scene, offset(reach)
         compare = solved.compare
         count = compare.num_samples * compare.num_links
+        unit = float(np.mean(compare.lengths))
+        self.nodes["grid"] = grid_under(scene, "/compare/grid", float(np.ceil((reach + unit) / unit)) * unit, unit, x)
         ring = circle_segments(reach, 96, z=-0.01 * reach) + (x, 0.0, 0.0)
         self.nodes["circle"] = scene.add_line_segments(
             "/compare/workspace", ring, colors=(150, 150, 150), thickness=LINE_PIXELS, thickness_units="screen"
@@ -105,6 +122,16 @@ class CompareNodes:
         self.nodes["links"] = scene.add_line_segments(
             "/compare/links", np.zeros((count, 2, 3)), colors=np.zeros((count, 2, 3), np.uint8), thickness=ARM_PIXELS,
             thickness_units="screen",
+        )  # fmt: skip
+        self.nodes["followed"] = scene.add_line_segments(
+            "/compare/followed", np.zeros((compare.num_links, 2, 3)), colors=(0, 0, 0), thickness=ARM_PIXELS,
+            thickness_units="screen",
+        )  # fmt: skip
+        sphere, joints = meshes.sphere_mesh(sizes.joint), compare.num_links + 1
+        self.nodes["joints"] = scene.add_batched_meshes_simple(
+            "/compare/joints", sphere.vertices, sphere.faces, np.tile([1.0, 0.0, 0.0, 0.0], (joints, 1)),
+            np.zeros((joints, 3)), batched_colors=np.zeros((joints, 3), np.uint8), lod="off", cast_shadow=False,
+            receive_shadow=False,
         )  # fmt: skip
         cross = meshes.cross_mesh(sizes.cross)
         target = solved.view.target

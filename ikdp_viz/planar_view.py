@@ -99,16 +99,7 @@ class PlanarView:
         self._static_nodes = [*nodes, self.gizmo, self.cross]
 
     def _grid(self, half_width: float):
-        """The ground grid out to `half_width`: a line every half bone length, darker every bone length."""
-        # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
-        # 82 lines cost the page as much as the 16 arms (docs/viewer.md, "Frames in the page")
-        unit = self.unit
-        grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
-        colors = np.broadcast_to(
-            np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8), grid.shape
-        )
-        return self.server.scene.add_line_segments("/grid", grid, colors=colors.copy(), thickness=1.0,
-                                                   thickness_units="screen")  # fmt: skip
+        return grid_under(self.server.scene, "/grid", half_width, self.unit)
 
     def extent(self) -> Extent:
         """The part of the plane this view draws in: the workspace disc (the grid around it is background)."""
@@ -299,3 +290,13 @@ class PlanarView:
                 handle.remove()
                 setattr(self, name, None)
         self.nodes_shape = self._refined_of = None
+
+
+def grid_under(scene, name: str, half_width: float, unit: float, x: float = 0.0):
+    """The ground grid out to `half_width` about (x, 0): a line every half bone length, darker every bone length."""
+    # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
+    # 82 lines cost the page as much as the 16 arms (docs/viewer.md, "Frames in the page")
+    grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
+    colors = np.broadcast_to(np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8), grid.shape)
+    return scene.add_line_segments(name, grid + np.array([x, 0.0, 0.0], dtype=grid.dtype), colors=colors.copy(),
+                                   thickness=1.0, thickness_units="screen")  # fmt: skip
