@@ -204,6 +204,10 @@ def test_noise_it_and_the_schedule_plot_follow_the_slider(browser, tmp_path):
         box = plot.locator(".u-over").first.bounding_box()
         assert at_noise[0] - at_pose[0] > 0.8 * box["width"]  # the orange "now" went from t = T (right) to 0 (left)
         assert at_noise[1] < at_pose[1]  # and from sigma near 1 (top) to 0 (bottom)
+        page.get_by_text("Words", exact=True).first.click()  # folded at the start: the glossary opens
+        words = wait_for_text(page, r"ᾱ_t how much of the pose is left")
+        for term in ("x̂0", "σ", "ODE", "DPM-Solver++", "DLS", "FiLM", "cossin", "heading", "p95", "prior"):
+            assert re.search(rf"(^|\n){re.escape(term)} \S", words), f"the Words folder defines no {term!r}"
         assert not [error for error in errors if "pageerror" in error], errors
         page.close()
 
