@@ -15,7 +15,7 @@ import numpy as np
 from ikdp_viz.scene import ACCENT_DARK, FAINT, fade_colors, sample_colors
 
 TRAIL_CHOICES = ("highlighted", "all samples")  # the panel's "trail of" dropdown, the default first
-OTHERS_FINAL = (160, 160, 160)  # the samples not highlighted at t = 0, with the trail of the highlighted one only
+OTHERS_FINAL = (185, 185, 185)  # the samples not highlighted at t = 0, with the trail of the highlighted one only
 # The followed trail's noisy end: nearly the page's white. Its first states are random poses over half the
 # workspace; at the accent's own faint blue they were a pale tangle that read as more samples, while this
 # leaves the last states, where the pose forms, to stand out from the grey final samples.

@@ -159,7 +159,7 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
 
     link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]
     others = np.delete(link_colors, highlight, axis=0)
-    assert (others == line_colors(np.array(OTHERS_FINAL, np.uint8))).all()  # light grey (160)
+    assert (others == line_colors(np.array(OTHERS_FINAL, np.uint8))).all()  # light grey (185)
     assert (link_colors[highlight] == line_colors(np.array(ACCENT_DARK, np.uint8))).all()
     scales = app.joints.batched_scales.reshape(num_samples, num_links + 1)
     assert (scales[highlight] == 1).all() and (np.delete(scales, highlight, axis=0) == 0).all()
