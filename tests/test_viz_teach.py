@@ -128,3 +128,15 @@ def test_joint_space_words_name_the_branches_and_the_held_joints():
     with pytest.raises(ValueError, match="headings: expected 4 angles, one per joint, got 2"):
         held_text(("θ1", "θ2", "θ3", "θ4"), (0, 1), [0.0, 1.0])
     assert "θ1 (→) and θ2 (↑)" in joint_space_title("θ1", "θ2")
+
+
+def test_the_followed_trail_is_fainter_than_the_final_samples_until_the_pose_forms():
+    from ikdp_viz.emphasis import OTHERS_FINAL, TRAIL_FAINT, emphasis_colors
+    from ikdp_viz.scene import ACCENT_DARK
+
+    arms, trail = emphasis_colors(81, 16, 3, "highlighted")
+    followed = trail[:, 3].astype(int)  # (S+1, 3) the followed sample's trail, t = T first
+    assert tuple(followed[0]) == TRAIL_FAINT and tuple(followed[-1]) == ACCENT_DARK
+    lighter = followed.sum(axis=1) > sum(OTHERS_FINAL)
+    assert lighter[:55].all()  # t = 80 .. 26, where the poses are mostly noise: lighter than the grey finals
+    assert tuple(arms[-1, 0]) == OTHERS_FINAL and tuple(arms[-1, 3]) == ACCENT_DARK
