@@ -9,10 +9,12 @@ computed once, here. No viser here.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from ikdp_viz import readouts
 from ikdp_viz.clock import CLOCK_CHOICES
 from ikdp_viz.constraint_readout import unmet_reasons
 from ikdp_viz.constraint_scene import holds, met_text
@@ -116,6 +118,9 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     (None when still); `palettes` caches the kind's colours per (solve, highlight, settings)."""
     view = solved.view
     state = int(np.clip(state, 0, view.num_states - 1))
+    forward = getattr(solved, "forward", False)  # noise_it.py's forward process (a test's stand-in may lack it)
+    if forward:  # a trail up to the step shown would run ahead of the noising, to t = T
+        settings = dataclasses.replace(settings, show_trail=False)
     highlight = highlighted_sample(settings.highlight, solved)
     constraint_colors = settings.color_by_constraint and solved.state_violation is not None
     palette = palettes.get(kind, solved, highlight, settings.trail_of, constraint_colors)
@@ -124,6 +129,8 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     if solved.preview_of is not None:  # say which is shown
         text = (f"**Fast preview** ({solved.request.sampler_label}, {view.num_states - 1} steps) while the "
                 f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
+    if forward:
+        text = readouts.FORWARD_NOTE + "  \n" + text
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
     text += "".join("  \n" + line for line in unmet_reasons(solved))  # why, here too: the folder starts closed

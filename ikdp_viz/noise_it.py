@@ -46,9 +46,9 @@ def forward_solved(solved: Solved, seed: int) -> Solved:
     )  # fmt: skip
     view, trail = arm_kind(solver).drawable(result, solver, request.target)
     forward_request = dataclasses.replace(request, sampler=FORWARD, steps=None, animate=False, compare_sampler=None)
-    return Solved(forward_request, view, trail, 0.0, final_angles=solved.final_angles)
+    return Solved(forward_request, view, trail, 0.0, final_angles=solved.final_angles, forward=True)
 
 
 def is_forward(solved: Solved | None) -> bool:
     """`solved` is a forward process made by `forward_solved`, not a denoising."""
-    return solved is not None and solved.request.sampler == FORWARD
+    return solved is not None and solved.forward

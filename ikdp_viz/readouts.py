@@ -38,6 +38,12 @@ def sample_note(view, highlight: int, reason: str | None, error_name: str, raw_b
     return note, raw_line
 
 
+FORWARD_NOTE = (  # the readouts' first line while noise_it.py's forward process is on screen
+    "**Noise it**: the final poses mixed with one noise ε as training does, x_t = √ᾱ_t · x_0 + √(1 − ᾱ_t) · ε; "
+    "t = 0 is the poses themselves, t = T pure noise (no trail: the path goes on to t = T)"
+)
+
+
 def solve_text(
     view: SolveView,
     state: int,

@@ -100,6 +100,7 @@ class Solved:
     # which one fails, for the readouts' "why none meets"
     followed: TrackStep | None = None  # follow mode: ikdp.tracking's step to this target
     followed_sample: int | None = None  # the sample whose returned pose is drawn as the pose that step kept
+    forward: bool = False  # the forward process of a solve's poses (noise_it.py), not a denoising
     reaches_unconstrained: bool | None = None  # where no pose reaches under locks or obstacles: whether the same
     # noise solved without them reaches (they cause the miss) or not (they do not); None: not asked
 

@@ -190,6 +190,7 @@ def test_noise_it_and_the_schedule_plot_follow_the_slider(browser, tmp_path):
         text = panel_text(page)
         noised = readout(text)
         assert slider_t(page) == 80 and noised.error_final == pytest.approx(clean.error_now, abs=1e-4)
+        assert "Noise it: the final poses mixed with one noise" in text and not trail_listed(page)
         assert noised.error_now > 10 * clean.error_now  # at t = T the poses are noise, far from the target
         problems, _ = invariants(ui, robot=False)  # the noised tip drawn where the readout puts it
         assert not problems, problems
@@ -224,3 +225,8 @@ def now_dot(page, plot) -> np.ndarray:
     assert found, "no orange dot on the schedule plot"
     centre, _ = max(found, key=lambda blob: blob[1])
     return centre + [x, y]
+
+
+def trail_listed(page) -> bool:
+    """The legend lists a trail (it lists each layer only while drawn)."""
+    return any(line.startswith("trail") for line in legend_texts(page))
