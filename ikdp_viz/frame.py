@@ -113,9 +113,10 @@ class Frame:
 
 
 def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, animating_to: int | None,
-                error: str | None = None) -> Frame:  # fmt: skip
+                error: str | None = None, note: str | None = None) -> Frame:  # fmt: skip
     """The frame of `state` of `solved` as `settings` show it; `animating_to` is the playing animation's last state
-    (None when still); `palettes` caches the kind's colours per (solve, highlight, settings)."""
+    (None when still); `palettes` caches the kind's colours per (solve, highlight, settings); `note`: a line for
+    the readouts (the t asked for and the step shown instead)."""
     view = solved.view
     state = int(np.clip(state, 0, view.num_states - 1))
     forward = getattr(solved, "forward", False)  # noise_it.py's forward process (a test's stand-in may lack it)
@@ -136,6 +137,8 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     text += "".join("  \n" + line for line in unmet_reasons(solved))  # why, here too: the folder starts closed
     if solved.request.compare_note is not None:
         text += "  \n" + solved.request.compare_note
+    if note is not None:
+        text += "  \n" + note
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:

@@ -68,6 +68,7 @@ class SceneWriter:
         self._unseen = False  # the solve on screen waits at pure noise for a tab to open, to play then
         self.wait_for_tab = False  # with no tab open, a solve to animate waits at pure noise (the command line's)
         self._replay_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
+        self.snap_note: str | None = None  # a t asked for that the sampler does not visit, said in the readouts
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
         # still the newest; for benchmarks/viz_latency.py
         self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
@@ -115,8 +116,10 @@ class SceneWriter:
             self.animation = None  # a user's step pauses the animation
             if self.solved is not None:
                 state = self.state + message.delta if message.state is None else message.state
+                self.snap_note = None
                 if message.timestep is not None:
                     state = nearest_state(self.solved.view.labels, message.timestep)
+                    self.snap_note = snap_note(self.solved.view.labels, message.timestep, state)
                 self._draw_state(state)
         elif isinstance(message, TogglePlay):
             self._toggle_play()
@@ -152,7 +155,7 @@ class SceneWriter:
         if solved.request.model is not self.solver:
             return  # a solve of the model that was replaced
         self.animation, self._unseen = None, False
-        self.solved, self.error = solved, None
+        self.solved, self.error, self.snap_note = solved, None, None
         self.view.clear_prior()  # the prior's draw was for the solve before
         preview = solved.preview_of is not None
         if self.after_solve is not None and message.newest and not preview:
@@ -254,6 +257,7 @@ class SceneWriter:
         return build_frame(
             self.kind, self.solved, state, self.settings(), palettes=self._palettes,
             animating_to=None if self.animation is None else self.animation.last, error=self.error,
+            note=self.snap_note,
         )  # fmt: skip
 
     def _draw_state(self, state: int) -> None:
@@ -301,6 +305,18 @@ class SceneWriter:
         self.output.new_model(message.solver.timesteps)
         self.panel.target_text.content = self.kind.target_text(self.solver, self.target, self.target_clamped)
         self.output.waiting(self.error)
+
+
+def snap_note(labels: np.ndarray, asked: float, state: int) -> str | None:
+    """The readouts' line when the slider asked for a t the sampler never visits (a few-step sampler's gaps)."""
+    shown = int(labels[state])
+    if round(float(asked)) == shown:
+        return None
+    times = [int(label) for label in labels]
+    visits = ", ".join(map(str, times)) if len(times) <= 12 else f"{len(times)} of them"
+    return (
+        f"t = {float(asked):g} is no step of this sampler (it visits t = {visits}): the nearest, t = {shown}, is shown"
+    )
 
 
 def hide_toast(client) -> None:

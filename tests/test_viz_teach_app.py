@@ -77,3 +77,18 @@ def test_noise_it_draws_the_final_poses_going_to_noise(n4):
         assert "forward process (noise it)" in app.panel.readout_text.content
         assert np.median(app.solved.view.tip_error[0]) > 10 * np.median(app.solved.view.tip_error[-1])
         assert app.noise_it() is None  # a forward process is not noised again
+
+
+def test_a_t_the_student_never_visits_is_said_when_the_slider_snaps(n4):
+    with running_app(n4) as app:
+        app.panel.play_on_move.value = False
+        app.panel.sampler.value = "student"
+        settle(app)
+        labels = [int(label) for label in app.solved.view.labels]
+        asked = next(t for t in range(1, 80) if t not in labels)
+        app.panel.timestep.value = asked
+        text = app.panel.readout_text.content
+        assert f"t = {asked} is no step of this sampler (it visits t = {', '.join(map(str, labels))})" in text
+        assert int(app.panel.timestep.value) in labels
+        app.show_state(0)  # a step by its index: nothing was asked that it lacks
+        assert "is no step of this sampler" not in app.panel.readout_text.content
