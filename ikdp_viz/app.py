@@ -55,7 +55,7 @@ from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
 from ikdp_viz.student import model_and_student
-from ikdp_viz.tour_runner import TourRunner
+from ikdp_viz.tour import TourRunner
 from ikdp_viz.typed_target import target_from_numbers
 
 PAGE_DRAW_TIMEOUT = 20.0  # seconds a new tab gets to draw its first frame before the denoising plays anyway

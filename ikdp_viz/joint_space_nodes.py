@@ -26,8 +26,8 @@ from ikdp_viz.joint_space_scene import (
     model_timestep,
     square_beside,
 )
-from ikdp_viz.joint_space_words import branch_name, held_text, joint_space_title
 from ikdp_viz.planar_kind import JOINT_SPACE_DOT
+from ikdp_viz.words import branch_name, held_text, joint_space_title
 
 FRAME_STRONG = (140, 140, 140)  # the border and the zero lines
 FRAME_WEAK = (196, 196, 196)  # the lines at +-pi/2

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import viser
 
-from ikdp_viz.joint_space_words import JOINT_SPACE_HINT
+from ikdp_viz.words import JOINT_SPACE_HINT
 
 DEFAULT_GRID = 20  # field arrows per side of the square
 

@@ -13,7 +13,6 @@ import numpy as np
 import viser
 import viser.uplot
 
-from ikdp_viz.glossary import define
 from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
 from ikdp_viz.learn_panel import (
     LearnControls,
@@ -32,6 +31,7 @@ from ikdp_viz.teach_panel import (
     build_tour_controls,
     build_words_folder,
 )
+from ikdp_viz.words import define
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import viser
 
-from ikdp_viz.glossary import define, glossary_markdown
 from ikdp_viz.schedule_plot import SCHEDULE_NOTE, ScheduleCurves, build_schedule_plot
+from ikdp_viz.words import define, glossary_markdown
 
 
 @dataclass

@@ -4,14 +4,12 @@ import numpy as np
 import pytest
 
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
-from ikdp_viz.glossary import GLOSSARY, define, glossary_markdown
-from ikdp_viz.joint_space_words import branch_name, held_text, joint_space_title
-from ikdp_viz.model_words import model_words
 from ikdp_viz.noise_it import FORWARD, forward_solved, is_forward
 from ikdp_viz.same_noise import Rerun, largest_move, rerun_seed
 from ikdp_viz.scene import state_labels
 from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data, visited_count
 from ikdp_viz.tour import TOUR, TWO_LINK_MODEL, tour_markdown
+from ikdp_viz.words import GLOSSARY, branch_name, define, glossary_markdown, held_text, joint_space_title, model_words
 
 
 def test_tour_is_six_one_sentence_steps_the_issue_lists():
