@@ -33,7 +33,6 @@ class TourView:
     sampler: str = "ddpm"
     compare: str = "off"  # a second sampler from the same x_T, drawn beside
     joint_space: bool = False
-    schedule: bool = False  # open the schedule folder (the noise schedule plot)
 
 
 @dataclass(frozen=True)
@@ -88,7 +87,7 @@ TOUR: tuple[TourStep, ...] = (
         "DDPM adds fresh noise at each of its T steps; DDIM, drawn beside from the same x_T, follows a noise-free "
         "path in 20 steps (the schedule plot marks where each stops), so “again from the same x_T” lands DDPM "
         "somewhere new each time and DDIM on the same poses.",
-        TourView(timestep=0, compare="ddim", schedule=True),
+        TourView(timestep=0, compare="ddim"),
         "the compared sampler drawn beside",
     ),
 )
