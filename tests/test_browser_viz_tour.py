@@ -147,7 +147,8 @@ def test_each_tour_step_holds_what_its_sentence_says(browser, tmp_path):
             changed_pixels(before, after, compare_side, y, height),
             changed_pixels(before, after, main_side, y, height),
         )
-        assert same < 150 and moved > 3000, (same, moved)  # DDIM drew the very same poses; DDPM's arms moved
+        # DDIM drew the very same poses (what differs is a faint line's anti-aliasing); DDPM's arms moved
+        assert 50 * same < moved and moved > 3000, (same, moved)
 
         page.get_by_role("button", name="Leave the tour").click()
         text = open_still(ui, "Take the tour")
