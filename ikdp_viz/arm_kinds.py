@@ -39,6 +39,6 @@ def compare_view_class(solver):
         from ikdp_viz.compare import CompareNodes
 
         return CompareNodes
-    from ikdp_viz.robot_compare import RobotCompareNodes
+    from ikdp_viz.compare import RobotCompareNodes
 
     return RobotCompareNodes

@@ -10,14 +10,21 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ikdp_viz import chain_readouts, chain_scene
+from ikdp_viz import chain_scene, readouts
 from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors
 from ikdp_viz.constraint_scene import FREE_AXIS_COLOR, HOLDS, VIOLATES, holds, sample_tints
-from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
-from ikdp_viz.legend import Entry, Swatch
 from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, shown_layers
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, trail_colors
-from ikdp_viz.style import TARGET_RED
+from ikdp_viz.scene import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
+    DARK,
+    FAINT,
+    OTHERS_FINAL,
+    emphasis_colors,
+    follows_one,
+    trail_colors,
+)
+from ikdp_viz.style import TARGET_RED, Entry, Swatch
 
 HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
 # darkens a mesh and the Panda's links are near black in their own shadows
@@ -95,11 +102,11 @@ class ChainKind:
         return view, chain_scene.hand_paths(view.points)
 
     def model_text(self, solver) -> str:
-        return chain_readouts.chain_model_text(solver.arm, solver.timesteps, solver.metadata)
+        return readouts.chain_model_text(solver.arm, solver.timesteps, solver.metadata)
 
     def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
         note = "  \n(out of reach: moved onto the reach ball, which bounds every pose the arm reaches)"
-        return chain_readouts.pose_text(target) + (note if clamped else "")
+        return readouts.pose_text(target) + (note if clamped else "")
 
     def target_words(self, target: np.ndarray) -> str:
         """The target in a recording's label."""
@@ -162,11 +169,11 @@ class ChainKind:
 
     def solve_text(self, solved, state: int, highlight: int, reason: str, error: str | None) -> str:
         request = solved.request
-        text = chain_readouts.chain_solve_text(
+        text = readouts.chain_solve_text(
             solved.view, state, highlight, sampler=request.sampler_label, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, reason=reason,
         )  # fmt: skip
-        miss = chain_readouts.miss_text(solved.view, request.solver.arm, beyond_reach=request.target_clamped)
+        miss = readouts.miss_text(solved.view, request.solver.arm, beyond_reach=request.target_clamped)
         text += "" if miss is None else "  \n" + miss
         return text + (f"  \n**Newest solve failed** {error}" if error else "")
 

@@ -26,7 +26,6 @@ import numpy as np
 import viser
 
 from ikdp_viz.camera import camera_fit_3d
-from ikdp_viz.constraint_readout import readout_text
 from ikdp_viz.constraint_scene import (
     FREE_AXIS_COLOR,
     LINK_CLEARANCE,
@@ -35,10 +34,11 @@ from ikdp_viz.constraint_scene import (
     build_constraints,
     holds,
     overlay_segments,
+    readout_text,
 )
-from ikdp_viz.lock_fields import lock_fields
 from ikdp_viz.scene import line_colors
 from ikdp_viz.style import OBSTACLE
+from ikdp_viz.typed_target import lock_fields
 
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
 FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows

@@ -13,16 +13,9 @@ import numpy as np
 import viser
 import viser.uplot
 
-from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.learn_panel import (
-    LearnControls,
-    build_clock,
-    build_compare,
-    build_legend,
-    build_share_button,
-    build_target_inputs,
-    build_trail_of,
-)
+from ikdp_viz.frame import CLOCK_CHOICES
+from ikdp_viz.joint_space import JointSpaceControls, build_joint_space_controls
+from ikdp_viz.scene import TRAIL_CHOICES
 from ikdp_viz.schedule_plot import schedule_curves
 from ikdp_viz.teach_panel import (
     TeachControls,
@@ -106,7 +99,7 @@ class Panel:
     checkpoint: viser.GuiDropdownHandle
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
-    learn: LearnControls  # what makes the denoising readable (learn_panel.py)
+    learn: LearnControls  # what makes the denoising readable (panel.py)
     teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teach_panel.py)
 
 
@@ -222,4 +215,87 @@ def build_panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, teacher_student, steps, seed, new_seed, refine,
         refine_steps, readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn, teach,
+    )  # fmt: skip
+
+
+# The panel's controls that make the denoising readable: whose trail, the clock, the legend, sharing a solve.
+@dataclass
+class TargetInputs:
+    """The target typed in the Target folder: x, y for a planar arm; a robot's position and rotation."""
+
+    xy: viser.GuiVector2Handle  # planar arm only
+    position_mm: viser.GuiVector3Handle  # a robot's hand position, millimetres
+    rotation_deg: viser.GuiVector3Handle  # and its rotation, roll pitch yaw in degrees (pose models)
+    go: viser.GuiButtonHandle  # solve the typed target
+
+    def show_for(self, kind: str, target_dim: int) -> None:
+        """Offer the fields of an arm of `kind` ("planar" or "chain"); rotation only for pose targets."""
+        self.xy.visible = kind == "planar"
+        self.position_mm.visible = kind != "planar"
+        self.rotation_deg.visible = kind != "planar" and target_dim == 7
+
+
+@dataclass
+class LearnControls:
+    trail_of: viser.GuiDropdownHandle  # the highlighted sample's trail (the paper's figure) or every sample's
+    clock: viser.GuiDropdownHandle  # the animation's time spaced by noise level or by step
+    clock_note: viser.GuiMarkdownHandle  # where the animation's time goes, said on screen
+    legend: viser.GuiHtmlHandle  # what each colour means (style.py; written by the scene writer)
+    share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
+    target: TargetInputs  # the target typed in the panel
+    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare.py)
+
+
+def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
+    return gui.add_dropdown(
+        "trail of", TRAIL_CHOICES, initial_value=TRAIL_CHOICES[0],
+        hint="highlighted: the paper's figure, one sample's denoising from faint to dark, the others light; "
+        "all samples: every sample's trail and arm dark",
+    )  # fmt: skip
+
+
+def build_clock(gui: viser.GuiApi) -> tuple[viser.GuiDropdownHandle, viser.GuiMarkdownHandle]:
+    clock = gui.add_dropdown(
+        "clock", CLOCK_CHOICES, initial_value=CLOCK_CHOICES[0],
+        hint="noise level: each step lasts in proportion to how much it lowers the noise level σ = √(1 − ᾱ_t), so "
+        "the animation dwells where the poses form; step: every step the same time",
+    )  # fmt: skip
+    return clock, gui.add_markdown("")
+
+
+def build_legend(gui: viser.GuiApi) -> viser.GuiHtmlHandle:
+    with gui.add_folder("Legend"):
+        return gui.add_html("")
+
+
+def build_share_button(gui: viser.GuiApi) -> viser.GuiButtonHandle:
+    return gui.add_button(
+        "Share this denoising (HTML)", icon=viser.Icon.SHARE,
+        hint="One HTML file of the solve on screen, playable and scrubbable in any browser with no server: "
+        "for a web page or a lecture",
+    )  # fmt: skip
+
+
+def build_target_inputs(gui: viser.GuiApi) -> TargetInputs:
+    xy = gui.add_vector2("x, y", (0.0, 0.0), step=0.01, hint="Type a target and press 'Solve this target'")
+    position = gui.add_vector3("x, y, z (mm)", (0.0, 0.0, 0.0), step=1.0, visible=False, hint="The hand's position")
+    rotation = gui.add_vector3(
+        "roll, pitch, yaw (°)", (0.0, 0.0, 0.0), step=1.0, visible=False,
+        hint="The hand's rotation: about x, then y, then z, in degrees",
+    )  # fmt: skip
+    go = gui.add_button("Solve this target", icon=viser.Icon.TARGET)
+    return TargetInputs(xy, position, rotation, go)
+
+
+COMPARE_CHOICES = ("off", "ddim", "dpmpp2m", "ddpm")  # the "compare with" dropdown: off, or a sampler
+
+
+def build_compare(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
+    return gui.add_dropdown(
+        "compare with", COMPARE_CHOICES, initial_value="off",
+        hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn beside with its own "
+        "trail, in the same colours; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ "
+        "follow the deterministic ODE (ordinary differential equation: a noise-free path from x_T to a pose); "
+        "teacher: the teacher's deterministic run a distilled student is trained to match; "
+        "student: the student's few steps",
     )  # fmt: skip

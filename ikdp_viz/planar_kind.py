@@ -12,11 +12,22 @@ import numpy as np
 
 from ikdp_viz import readouts, scene
 from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, sample_tints
-from ikdp_viz.emphasis import OTHERS_FINAL, TRAIL_FAINT, emphasis_colors, follows_one
-from ikdp_viz.legend import Entry, Swatch
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, TIP_DARK, TIP_FAINT, fade_colors
+from ikdp_viz.scene import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
+    DARK,
+    FAINT,
+    OTHERS_FINAL,
+    REFINED,
+    TIP_DARK,
+    TIP_FAINT,
+    TRAIL_FAINT,
+    emphasis_colors,
+    fade_colors,
+    follows_one,
+)
 from ikdp_viz.student import student_sampling
-from ikdp_viz.style import ESTIMATE, OBSTACLE, PRIOR, TARGET_RED
+from ikdp_viz.style import ESTIMATE, OBSTACLE, PRIOR, TARGET_RED, Entry, Swatch
 from ikdp_viz.words import model_words
 
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops

@@ -11,9 +11,8 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from ikdp_viz import meshes
+from ikdp_viz import robot_meshes
 from ikdp_viz.camera import Extent, camera_fit, over_the_point
-from ikdp_viz.emphasis import estimate_rows, follows_one, trail_rows
 from ikdp_viz.frame import Frame
 from ikdp_viz.scene import (
     ARM_LIFT,
@@ -23,13 +22,25 @@ from ikdp_viz.scene import (
     TARGET_LIFT,
     arm_placement,
     circle_segments,
+    estimate_rows,
+    follows_one,
     grid_segments,
     line_colors,
     polyline_segments,
+    trail_rows,
     trail_until,
 )
-from ikdp_viz.style import ARM_PIXELS, ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, TARGET_RED
-from ikdp_viz.view_parts import prior_lines, removed, start_rebuild
+from ikdp_viz.style import (
+    ARM_PIXELS,
+    ESTIMATE,
+    GRID_CELL,
+    GRID_SECTION,
+    LINE_PIXELS,
+    TARGET_RED,
+    prior_lines,
+    removed,
+    start_rebuild,
+)
 
 SAMPLE_NODES = ("trail", "estimate_lines", "refined_lines", "refined_tips", "links", "followed_links", "joints", "tips")
 OTHER_PIXELS = 2.0  # the other samples' links while one is followed: thin and light, as the paper's figure draws them
@@ -55,7 +66,7 @@ class PlanarView:
         start_rebuild(self, solver, target)
         scene = self.server.scene
         lengths = solver.lengths
-        self.sizes = meshes.ArmSizes.for_lengths(lengths)
+        self.sizes = robot_meshes.ArmSizes.for_lengths(lengths)
         inner, outer = solver.reach
         self.reach = float(outer)
         unit = float(np.mean(lengths))
@@ -72,7 +83,7 @@ class PlanarView:
                         thickness_units="screen",
                     )  # fmt: skip
                 )
-        base = meshes.base_mesh(self.sizes.base)
+        base = robot_meshes.base_mesh(self.sizes.base)
         nodes.append(
             scene.add_mesh_simple(
                 "/base", base.vertices, base.faces, color=(90, 90, 90), cast_shadow=False, receive_shadow=False
@@ -91,7 +102,7 @@ class PlanarView:
         )  # fmt: skip
         self.gizmo.on_update(self._track_drag)  # first: viser awaits async callbacks in the order given
         self.gizmo.on_update(self._gizmo_update)
-        cross = meshes.cross_mesh(self.sizes.cross)
+        cross = robot_meshes.cross_mesh(self.sizes.cross)
         self.cross = scene.add_mesh_simple(
             "/target_cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
             position=self.cross_position(camera_fit(self.reach)[0]),
@@ -249,7 +260,7 @@ class PlanarView:
         spheres = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
         identity = lambda count: np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))  # noqa: E731
         origin = lambda count: np.zeros((count, 3))  # noqa: E731
-        joint, tip = meshes.sphere_mesh(self.sizes.joint), meshes.sphere_mesh(self.sizes.tip)
+        joint, tip = robot_meshes.sphere_mesh(self.sizes.joint), robot_meshes.sphere_mesh(self.sizes.tip)
         self.trail = scene.add_line_segments(
             "/arm/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS, **lines
         )

@@ -225,7 +225,7 @@ def test_a_pulled_solve_still_reaches_the_target_or_says_it_was_dropped(mode):
 def test_lock_fields_are_degrees_within_the_joints_limits_and_any_angle_wraps():
     """The "θ1 value" took 90 and used 90 rad; a robot's lock fields were radians beside targets
     in degrees, and a value past a limit was used as typed."""
-    from ikdp_viz.lock_fields import lock_fields
+    from ikdp_viz.typed_target import lock_fields
 
     planar = lock_fields(ikdp.PlanarArm([1.0, 1.0]))
     assert planar[0].label == "θ1 (°)" and planar[0].wraps

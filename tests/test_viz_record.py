@@ -12,7 +12,7 @@ import zstandard
 from viz_helpers import running_app, settle
 
 import ikdp
-from ikdp_viz.clock import noise_levels, state_offsets
+from ikdp_viz.frame import noise_levels, state_offsets
 from ikdp_viz.record import HOLD_FINAL, SHORTEST_STATE, RecordSettings, file_name, record_html
 
 
