@@ -492,7 +492,10 @@ def shipped_model(model: str):
 
 # Sequences that meet a defect not fixed yet: (model, seed) -> the defect, in words. Each is a strict xfail, so the
 # sequence's pass after the fix flips it.
-KNOWN_DEFECTS: dict[tuple[str, int], str] = {}
+KNOWN_DEFECTS: dict[tuple[str, int], str] = {
+    (ROBOT_MODEL, 2): "after 'compare with: ddim' (its legend and scene agree: the frame beside has its green swatch), "
+    "clicking the Constraints folder shows no 'lock ...' control within 10 s",
+}
 
 
 def sequences() -> list:
