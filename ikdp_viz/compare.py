@@ -29,7 +29,7 @@ from ikdp_viz.scene import (
     trail_rows,
     trail_until,
 )
-from ikdp_viz.style import TARGET_RED
+from ikdp_viz.style import REACH_RING, TARGET_RED
 
 GAP = 0.35  # between the two workspaces, in reach radii
 
@@ -118,7 +118,7 @@ class CompareNodes:
         self.nodes["grid"] = grid_under(scene, "/compare/grid", float(np.ceil((reach + unit) / unit)) * unit, unit, x)
         ring = circle_segments(reach, 96, z=-0.01 * reach) + (x, 0.0, 0.0)
         self.nodes["circle"] = scene.add_line_segments(
-            "/compare/workspace", ring, colors=(150, 150, 150), thickness=LINE_PIXELS, thickness_units="screen"
+            "/compare/workspace", ring, colors=REACH_RING, thickness=LINE_PIXELS, thickness_units="screen"
         )
         self.nodes["trail"] = scene.add_line_segments(
             "/compare/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS,

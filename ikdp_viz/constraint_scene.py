@@ -13,19 +13,11 @@ import numpy as np
 
 import ikdp
 from ikdp.guidance import ConstraintSet
+from ikdp_viz.style import HOLDS, HOLDS_FAINT, HOLDS_OTHERS, VIOLATES, VIOLATES_FAINT, VIOLATES_OTHERS
 
-HOLDS = (40, 170, 80)  # a state whose pose meets the constraints
-VIOLATES = (215, 50, 40)  # one that does not
 HOLDS_TOLERANCE = 0.01  # summed violation (radians of a locked joint, depth in the arm's unit) drawn as holding
 NEAR_WEIGHT = 0.6  # the pull toward the last pose (ikdp.tracking: 0.6 kept a Panda circle's jumps under 0.02 rad)
-# the samples not highlighted: the same two hues, lighter, so the highlighted one still stands out among K = 16
-HOLDS_OTHERS = (110, 200, 130)
-VIOLATES_OTHERS = (235, 120, 105)
-# the overlay of the kept sample's past states: fainter still, a history under the poses of the step shown
-HOLDS_FAINT = (190, 230, 197)
-VIOLATES_FAINT = (247, 195, 187)
 
-FREE_AXIS_COLOR = (235, 140, 0)  # the free axis through the target: amber, none of the gizmo's red, green, blue
 
 # What a pose model's target asks for: the panel's choices, each with the free axis (end-effector frame) or None
 TARGET_KINDS = {

@@ -14,6 +14,7 @@ import viser
 
 from ikdp_viz.record import file_name
 from ikdp_viz.scene import emphasis_colors, follows_one
+from ikdp_viz.style import REACH_RING_HEX, TARGET_RED_HEX
 
 
 def export_picture(solved, settings, solver, legend=None):
@@ -157,7 +158,6 @@ def button_state(button, label: str, disabled: bool) -> None:
 
 
 # A solve on screen, written to files for a slide: the denoising as a GIF and the trail figure as a PNG.
-TARGET_RED = "#dc1919"
 TITLE_BAND = 40  # pixels above the trail PNG's picture, for its title
 
 
@@ -214,7 +214,7 @@ def _figure(picture: Drawing, size_pixels: int, band: int = 0):
     axes.set_aspect("equal")
     axes.axis("off")
     if picture.circle is not None:
-        axes.add_patch(Circle((0, 0), picture.circle, fill=False, color="#969696", linewidth=0.8))
+        axes.add_patch(Circle((0, 0), picture.circle, fill=False, color=REACH_RING_HEX, linewidth=0.8))
     return figure, axes
 
 
@@ -236,7 +236,7 @@ def _draw_state(axes, picture: Drawing, state: int, *, trail: bool) -> None:
     chosen = picture.polylines[state, picture.highlight]
     color = picture.arms[state, picture.highlight] / 255
     axes.plot(chosen[:, 0], chosen[:, 1], color=color, linewidth=2.5, marker="o", markersize=3, zorder=top + 1)
-    axes.plot(*picture.target, marker="x", color=TARGET_RED, markersize=12, mew=3, zorder=top + 2)
+    axes.plot(*picture.target, marker="x", color=TARGET_RED_HEX, markersize=12, mew=3, zorder=top + 2)
 
 
 def write_trail_png(picture: Drawing, path: Path, *, size_pixels: int = 800) -> Path:

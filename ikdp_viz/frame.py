@@ -197,7 +197,8 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:
         chart = (*chart, compare_curve(view, solved.compare, highlight, scale=kind.chart_scale))
-    legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
+    shown = None if settings.recording else state  # a recording's one legend stands for every state it plays
+    legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved, state=shown)
     last = view.num_states - 1
     return Frame(
         solved=solved, state=state, highlight=highlight, settings=settings, palette=palette, light=light,

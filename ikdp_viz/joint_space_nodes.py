@@ -19,15 +19,10 @@ import ikdp
 from ikdp_viz.arm_kinds import arm_view_class, compare_view_class
 from ikdp_viz.camera import Extent, camera_over, fit_fields_of_view, move_cameras
 from ikdp_viz.joint_space import FieldCache, JointSpaceControls, two_link_solutions, wrap_to_square
-from ikdp_viz.planar_kind import JOINT_SPACE_DOT
+from ikdp_viz.style import ARROW, BACKING, FRAME_STRONG, FRAME_WEAK, JOINT_SPACE_DOT, SOLUTION
 from ikdp_viz.words import branch_name, held_text, joint_space_title
 
-FRAME_STRONG = (140, 140, 140)  # the border and the zero lines
-FRAME_WEAK = (196, 196, 196)  # the lines at +-pi/2
-ARROW = (185, 150, 215)  # the denoiser's arrows: a light shade of the x̂0 ghost's purple
-SOLUTION = (220, 25, 25)  # the target's red: the exact solution set (N = 2)
 FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red, which means the exact solutions
-BACKING = (255, 255, 255)
 # Heights above the square, in units of the reach, so that the top-down view draws samples over
 # solutions over arrows over the frame.
 ARROW_LIFT, SOLUTION_LIFT, SAMPLE_LIFT = 0.002, 0.004, 0.006

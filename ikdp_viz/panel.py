@@ -17,6 +17,7 @@ from ikdp_viz.frame import CLOCK_CHOICES
 from ikdp_viz.joint_space import JointSpaceControls, build_joint_space_controls
 from ikdp_viz.scene import TRAIL_CHOICES
 from ikdp_viz.schedule_plot import schedule_curves
+from ikdp_viz.style import CHART_HIGHLIGHTED, CHART_MEDIAN, CHART_NOW
 from ikdp_viz.teach_panel import (
     TeachControls,
     build_rerun_controls,
@@ -184,10 +185,10 @@ def build_panel(
             data=(np.array([0.0, float(num_timesteps)]), np.zeros(2), np.zeros(2), np.full(2, np.nan)),
             series=(
                 viser.uplot.Series(label="t"),
-                viser.uplot.Series(label="median", stroke="#999999", width=1.5),
-                viser.uplot.Series(label="highlighted", stroke="#1f5ad2", width=2),
+                viser.uplot.Series(label="median", stroke=CHART_MEDIAN, width=1.5),
+                viser.uplot.Series(label="highlighted", stroke=CHART_HIGHLIGHTED, width=2),
                 viser.uplot.Series(
-                    label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
+                    label="now", stroke=CHART_NOW, width=0, points={"show": True, "size": 9, "fill": CHART_NOW}
                 ),
             ),
             title="error against t",

@@ -17,7 +17,6 @@ from ikdp_viz.frame import Frame
 from ikdp_viz.scene import (
     ARM_LIFT,
     HIGHLIGHT_LIFT,
-    REFINED,
     REFINED_LIFT,
     TARGET_LIFT,
     arm_placement,
@@ -32,10 +31,13 @@ from ikdp_viz.scene import (
 )
 from ikdp_viz.style import (
     ARM_PIXELS,
+    BASE,
     ESTIMATE,
     GRID_CELL,
     GRID_SECTION,
     LINE_PIXELS,
+    REACH_RING,
+    REFINED,
     TARGET_RED,
     prior_lines,
     removed,
@@ -78,7 +80,7 @@ class PlanarView:
                     scene.add_line_segments(
                         f"/workspace/{name}",
                         circle_segments(radius, 96, z=-0.01 * unit),  # 96 look round; each costs the page
-                        colors=(150, 150, 150),
+                        colors=REACH_RING,
                         thickness=LINE_PIXELS,
                         thickness_units="screen",
                     )  # fmt: skip
@@ -86,7 +88,7 @@ class PlanarView:
         base = robot_meshes.base_mesh(self.sizes.base)
         nodes.append(
             scene.add_mesh_simple(
-                "/base", base.vertices, base.faces, color=(90, 90, 90), cast_shadow=False, receive_shadow=False
+                "/base", base.vertices, base.faces, color=BASE, cast_shadow=False, receive_shadow=False
             )
         )
         # The page's control (drei's PivotControls) limits the sum of the drags since it was drawn, not the

@@ -193,7 +193,7 @@ def main(argv: list[str] | None = None) -> None:
     settings = ViewSettings(
         highlight=config.highlight, trail_of=config.trail_of, show_estimate=config.show_estimate,
         clock=config.clock, seconds=config.seconds,
-        show_trail=arm_kind(solver).name == "planar",  # as the viewer opens: a robot's hand paths cage it near t = T
+        show_trail=arm_kind(solver).opens_with_trail,  # as the viewer opens
     )  # fmt: skip
     try:
         config.output.parent.mkdir(parents=True, exist_ok=True)

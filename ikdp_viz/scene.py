@@ -17,14 +17,8 @@ import numpy as np
 import torch
 
 from ikdp import SolveResult, forward_kinematics
+from ikdp_viz.style import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, OTHERS_FINAL, TRAIL_FAINT, TRAIL_GAMMA
 
-FAINT = (226, 226, 226)  # pure noise, t = T: the paper's lightest lines
-DARK = (28, 28, 28)  # the final pose, t = 0
-ACCENT_FAINT = (205, 222, 245)  # the highlighted sample at t = T
-ACCENT_DARK = (20, 90, 210)  # the highlighted sample at t = 0
-TIP_FAINT = (248, 222, 190)  # tip markers at t = T
-TIP_DARK = (235, 120, 10)  # tip markers at t = 0
-REFINED = (0, 150, 190)  # the damped-least-squares polish of the final pose: teal, not the green of "constraints hold"
 FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
 ERROR_FLOOR = 1e-6  # tip errors below this are charted at it (log10 of 0 is -inf)
 # Heights above the plane, in joint radii, that set what a top-down view draws on top of what: the
@@ -106,8 +100,9 @@ class SolveView:
     estimate_joints: np.ndarray | None = None  # (S, K, N+1, 2) the denoiser's x̂0 at the step into state s+1
 
     def estimate_at(self, state: int) -> np.ndarray | None:
-        """(K, N+1, 2) what the denoiser believed the final pose to be when it made state `state`; None at t = T."""
-        if self.estimate_joints is None or state < 1:
+        """(K, N+1, 2) what the denoiser believed the final pose to be when it made state `state`; None at t = T (no
+        guess made yet) and at t = 0, where the guess is the final pose itself and would hide under it, unseen."""
+        if self.estimate_joints is None or state < 1 or state >= self.num_states - 1:
             return None
         return self.estimate_joints[state - 1]
 
@@ -290,12 +285,6 @@ def compare_curve(view, compare, highlight: int, *, scale: float = 1.0) -> np.nd
 
 # What the default picture stresses, as the paper's figure does: one sample's denoising, the others in the background.
 TRAIL_CHOICES = ("highlighted", "all samples")  # the panel's "trail of" dropdown, the default first
-OTHERS_FINAL = (185, 185, 185)  # the samples not highlighted at t = 0, with the trail of the highlighted one only
-# The followed trail's noisy end: nearly the page's white. Its first states are random poses over half the
-# workspace; at the accent's own faint blue they were a pale tangle that read as more samples, while this
-# leaves the last states, where the pose forms, to stand out from the grey final samples.
-TRAIL_FAINT = (236, 242, 251)
-TRAIL_GAMMA = 3.0  # and it darkens later than the arms' ramp: the pale noisy half recedes behind the grey finals
 
 
 def follows_one(trail_of: str) -> bool:

@@ -154,7 +154,8 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
     brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
     assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
     # the others' final poses light lines, the highlighted one dark blue with its joints; the others' joints not drawn
-    from ikdp_viz.scene import ACCENT_DARK, OTHERS_FINAL, line_colors
+    from ikdp_viz.scene import line_colors
+    from ikdp_viz.style import ACCENT_DARK, OTHERS_FINAL
 
     link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]
     others = np.delete(link_colors, highlight, axis=0)
@@ -314,7 +315,7 @@ def test_the_gif_keeps_the_viewers_clock_and_colours(app, tmp_path):
     from PIL import Image
 
     from ikdp_viz.downloads import export_picture, gif_states
-    from ikdp_viz.scene import OTHERS_FINAL
+    from ikdp_viz.style import OTHERS_FINAL
 
     app.panel.duration.value = 4.0
     gif, _ = app.export(tmp_path)
@@ -619,8 +620,7 @@ def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
 
 
 def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
-    from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK
-    from ikdp_viz.style import ESTIMATE, PRIOR, TARGET_RED, css
+    from ikdp_viz.style import ACCENT_DARK, ESTIMATE, PRIOR, REFINED, TARGET_RED, TIP_DARK, css
 
     legend = app.panel.learn.legend.content
     for words in ("x̂0", "refined", "prior"):  # show x̂0 off, refine off, no prior's draw: none of them is drawn
@@ -629,6 +629,7 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
     app.panel.refine.value = True
     settle(app)
     app.draw_prior()
+    app.panel.timestep.value = app.panel.timestep.max // 2  # x̂0 is drawn between t = T and t = 0
     legend = app.panel.learn.legend.content
     for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
         assert css(color) in legend  # each colour of the scene has its swatch

@@ -11,19 +11,8 @@ from viz_helpers import drag_gizmo, running_app, settle
 import ikdp
 from ikdp.rotations import quaternion_to_matrix
 from ikdp_viz.chain_kind import GHOST_OPACITY, VIOLATING_GHOST_OPACITY
-from ikdp_viz.constraint_scene import (
-    HOLDS,
-    HOLDS_FAINT,
-    HOLDS_OTHERS,
-    VIOLATES,
-    VIOLATES_FAINT,
-    VIOLATES_OTHERS,
-    build_constraints,
-    first_holding_state,
-    holds,
-    overlay_segments,
-    sample_tints,
-)
+from ikdp_viz.constraint_scene import build_constraints, first_holding_state, holds, overlay_segments, sample_tints
+from ikdp_viz.style import HOLDS, HOLDS_FAINT, HOLDS_OTHERS, VIOLATES, VIOLATES_FAINT, VIOLATES_OTHERS
 
 K = 8
 

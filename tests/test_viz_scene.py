@@ -14,9 +14,6 @@ from viz_helpers import hand_made_result
 import ikdp
 from ikdp_viz import robot_meshes
 from ikdp_viz.scene import (
-    ACCENT_DARK,
-    DARK,
-    FAINT,
     LAYER_HEIGHT,
     arm_placement,
     build_view,
@@ -34,6 +31,7 @@ from ikdp_viz.scene import (
     trail_points,
     trail_until,
 )
+from ikdp_viz.style import ACCENT_DARK, DARK, FAINT
 
 
 def luminance(colors: np.ndarray) -> np.ndarray:

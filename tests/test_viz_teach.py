@@ -129,7 +129,8 @@ def test_joint_space_words_name_the_branches_and_the_held_joints():
 
 
 def test_the_followed_trail_is_fainter_than_the_final_samples_until_the_pose_forms():
-    from ikdp_viz.scene import ACCENT_DARK, OTHERS_FINAL, TRAIL_FAINT, emphasis_colors
+    from ikdp_viz.scene import emphasis_colors
+    from ikdp_viz.style import ACCENT_DARK, OTHERS_FINAL, TRAIL_FAINT
 
     arms, trail = emphasis_colors(81, 16, 3, "highlighted")
     followed = trail[:, 3].astype(int)  # (S+1, 3) the followed sample's trail, t = T first
