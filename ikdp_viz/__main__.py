@@ -48,6 +48,9 @@ class VizConfig:
     steps: int | None = None  # reverse steps of a sampler that can skip some, not ddpm (None: 20; 10 for a robot)
     seed: int = 0  # sampling seed
     refine_steps: int = 0  # damped-least-squares steps after sampling; 0: none
+    # open on the guided first visit, six steps (a planar arm's; its steps set K, the sampler and the view);
+    # --no-tour opens the viewer as the flags set it
+    tour: bool = True
 
 
 def parse_config(argv: list[str] | None = None) -> VizConfig:
@@ -159,6 +162,8 @@ def main(argv: list[str] | None = None) -> None:
             wait_for_tab=True,  # the first solve waits at pure noise and plays when the first tab opens
         )
         apply_settings(app, config)
+        if config.tour:
+            app.tour.start()
         port = server.get_port()
         shown_host = "localhost" if config.host in ("0.0.0.0", "::", "") else config.host
         print(f"ikdp-viz: open http://{shown_host}:{port}", flush=True)

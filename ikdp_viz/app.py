@@ -19,6 +19,8 @@ an arm view (`planar_view.py`, `robot_view.py`), picked in `arm_kinds.py` alone.
 
 from __future__ import annotations
 
+import dataclasses
+import threading
 import time
 from pathlib import Path
 
@@ -44,13 +46,16 @@ from ikdp_viz.messages import (
     TogglePlay,
 )
 from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
+from ikdp_viz.noise_it import forward_solved, is_forward
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel
+from ikdp_viz.same_noise import RerunReadout
 from ikdp_viz.sampling_controls import SamplingControls
 from ikdp_viz.scene_writer import SceneWriter
 from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
 from ikdp_viz.solving import Solved, solve
 from ikdp_viz.student import model_and_student
+from ikdp_viz.tour import TourRunner
 from ikdp_viz.typed_target import target_from_numbers
 
 PAGE_DRAW_TIMEOUT = 20.0  # seconds a new tab gets to draw its first frame before the denoising plays anyway
@@ -75,8 +80,11 @@ class VizApp:
         wait_for_tab: bool = False,
         previews: bool = True,
         student: ikdp.Solver | None = None,
+        tour: bool = False,
     ):
-        """`student`: the model's few-step student (student.py); None: looked for in `checkpoint_folder`."""
+        """`student`: the model's few-step student (student.py); None: looked for in `checkpoint_folder`.
+        `tour`: open on the guided first visit (tour.py; a planar arm's), as the command line does; scripts and
+        tests start without it."""
         self.server = server
         if student is None:  # a student's file opens with its teacher beside it when the folder holds that
             opened = solver
@@ -96,21 +104,25 @@ class VizApp:
             server.gui, num_timesteps=solver.timesteps, animation_seconds=animation_seconds,
             sampler_names=sampler_names(), checkpoint_labels=tuple(self.checkpoints),
             checkpoint_label=current, model_text=arm_kind(solver).model_text(solver),
+            alphas_cumprod=solver.model.schedule.alphas_cumprod,
         )  # fmt: skip
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
         self.sampling = SamplingControls(self.panel, lambda: self.request_solve(), self.session)
         self.constraint_controls = ConstraintControls(server, solver, self.writer.run, self.request_solve)
-        # on the drawing loop's thread: follow mode picks the highlighted sample before the frame that shows it
-        self.writer.after_solve = lambda solved: self.constraint_controls.after_solve(solved, self.panel, self.writer)
+        self.reruns = RerunReadout()  # again from the same x_T: how far each run's poses moved from the one before
+        self.writer.after_solve = self._after_solve
         self.downloads = Downloads(self.writer, self.panel)
         self._wire_panel()
         self.sampling.offer_student()
         self.sampling.show_steps()
         server.on_client_connect(self._on_connect)
         self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
+        self.tour = TourRunner(self)
         if solve_now:
             self.move_target(self.session.target)
+        if tour:
+            self.tour.start()
 
     # ---------------------------------------------------------------- what tests and scripts read
 
@@ -186,6 +198,49 @@ class VizApp:
                 self.writer.run(lambda writer: setattr(writer.panel.seed, "value", request.seed), wait=False)
             return self.worker.submit(self._job(request), self._solved, self._failed)
 
+    def again(self) -> int | None:
+        """Solve the solve on screen again from its very x_T with new step noise (same_noise.py); the ticket, or None
+        when nothing is on screen to rerun."""
+        solved = self.writer.solved
+        if solved is None or is_forward(solved) or solved.preview_of is not None:
+            return None
+        request = dataclasses.replace(
+            solved.request, rerun=solved.request.rerun + 1, arrival=time.perf_counter(), animate=True
+        )
+        return self.worker.submit(self._job(request), self._solved, self._failed)
+
+    def noise_it(self, play: bool = True):
+        """Show the forward process of the final poses on screen (noise_it.py) and play it from t = 0 toward T;
+        returns its Solved, or None when there is nothing to noise (no solve, a robot's)."""
+        solved = self.writer.solved
+        if solved is None or is_forward(solved) or solved.request.solver.arm.kind != "planar":
+            return None
+        forward = forward_solved(solved, seed=solved.request.seed)
+        self.writer.post(ShowSolve(forward, newest=True))  # drawn at its last state: t = 0, the poses themselves
+        self.writer.flush()
+        if play:
+            self.forward_player = threading.Thread(target=self._play_forward, args=(forward,), daemon=True)
+            self.forward_player.start()
+        return forward
+
+    def _play_forward(self, forward) -> None:
+        """Step the forward process from t = 0 to T over the animation's duration; a newer solve on screen stops it.
+        Each step is a ShowState message: the drawing loop stays the one writer."""
+        last = forward.view.num_states - 1
+        seconds = float(self.panel.duration.value) or 4.0
+        started = time.monotonic()
+        for state in range(last, -1, -1):
+            time.sleep(max(0.0, started + seconds * (last - state) / last - time.monotonic()))
+            if self.writer.solved is not forward:
+                return
+            self.writer.post(ShowState(state=state))
+
+    def _after_solve(self, solved) -> None:
+        """The drawing loop's thread, before the frame that shows `solved`: follow mode picks the highlighted
+        sample; a rerun's readout says how far its poses moved."""
+        self.constraint_controls.after_solve(solved, self.panel, self.writer)
+        self.panel.teach.again_text.content = self.reruns.after_solve(solved) or ""
+
     def _job(self, request):
         """The worker's job for `request`: its solve, and for a robot's drag a fast preview first, handed back as a
         result like any other (solving.preview_request)."""
@@ -259,6 +314,8 @@ class VizApp:
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
         panel.refine.on_update(self._on_loop(self.sampling.on_refine))
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
+        panel.teach.again.on_click(lambda _: self.again())
+        panel.teach.noise_it.on_click(lambda _: self.noise_it())
 
     def _on_loop(self, handler):
         """A callback that runs `handler()` on the drawing loop (it writes controls); a value set from Python waits

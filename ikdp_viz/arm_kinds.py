@@ -3,6 +3,25 @@
 The session, the solve, the drawing loop and the recording ask `arm_kind(solver)` (the arm's
 maths, texts, colours and legend: planar_kind.py, chain_kind.py) and `arm_view_class(solver)`
 (its scene nodes: planar_view.py, robot_view.py) instead of testing the arm's type.
+
+A new kind of arm (its solver's `arm.kind` a new word) is one entry in `ARM_KINDS` and one branch in each
+`*_class` function below; nothing outside this file asks which kind it is. Its kind object (plain maths and
+texts, no viser) provides what PlanarKind and ChainKind both provide:
+
+- attributes: `name`; `default_sampler` (sampler, steps); `opens_on_student`, `opens_with_trail` (how the
+  viewer opens); `chart_error`, `chart_unit`, `chart_scale` (the error chart's y); `holds_text`, `violates_text`
+  (the constraint colours' legend words);
+- the target: `initial_target`, `clamp` (into the reach, and whether it moved), `gizmo_target`, `typed_numbers`,
+  `write_typed_fields`, `target_text`, `target_words`;
+- the panel and texts: `configure_panel`, `model_text`, `solve_text`;
+- the picture: `drawable` (a solve's arrays to draw), `palette`, `arm_colors`, `light_trail_states`,
+  `legend_entries` (one entry per colour drawn at the state shown), `flat_picture` (the exported PNG/GIF),
+  `sample_path` (one sample's points at every state, for the constraint overlay).
+
+Its view class owns the scene nodes and draws a Frame (planar_view.PlanarView, robot_view.RobotView show the
+methods: rebuild, update(frame), place_target, show_prior and clear_prior, remove_samples, extent); its compare class
+draws a second sampler beside it.
+tests/test_viz_frame.py runs the legend and frame checks over both kinds; add the new kind to their parameters.
 """
 
 from __future__ import annotations
@@ -45,6 +64,6 @@ def compare_view_class(solver):
         from ikdp_viz.compare import CompareNodes
 
         return CompareNodes
-    from ikdp_viz.robot_compare import RobotCompareNodes
+    from ikdp_viz.compare import RobotCompareNodes
 
     return RobotCompareNodes

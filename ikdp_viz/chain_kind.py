@@ -10,16 +10,30 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ikdp_viz import chain_readouts, chain_scene
-from ikdp_viz.chain_scene import GHOST_DARK, GHOST_FAINT, ghost_colors
-from ikdp_viz.constraint_scene import FREE_AXIS_COLOR, HOLDS, VIOLATES, holds, sample_tints
-from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
-from ikdp_viz.legend import Entry, Swatch
+from ikdp_viz import chain_scene, readouts
+from ikdp_viz.chain_scene import ghost_colors
+from ikdp_viz.constraint_scene import holds, sample_tints
 from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, shown_layers
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, trail_colors
-from ikdp_viz.style import TARGET_RED
+from ikdp_viz.scene import emphasis_colors, follows_one, trail_colors
+from ikdp_viz.style import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
+    DARK,
+    FAINT,
+    FRAME_Y_GREEN,
+    FREE_AXIS_COLOR,
+    GHOST_DARK,
+    GHOST_FAINT,
+    HAND_RED,
+    HIGHLIGHTED_ROBOT,
+    HOLDS,
+    OTHERS_FINAL,
+    TARGET_RED,
+    VIOLATES,
+    Entry,
+    Swatch,
+)
 
-HIGHLIGHTED_ROBOT = (40, 110, 235)  # the followed sample's opaque robot: a lighter blue than the lines, as shading
 # darkens a mesh and the Panda's links are near black in their own shadows
 GHOST_OPACITY = 0.15  # the samples not highlighted: seen through, so the highlighted robot stays readable
 # a see-through robot that breaks a constraint at the step shown: at 0.15 its red read as a pale pink beside the
@@ -55,6 +69,13 @@ class ChainKind:
     # A robot's model with a distilled student opens on it: a new target's first frame after
     # a few network evaluations, the teacher's full DDPM one click away (student.py)
     opens_on_student = True
+    opens_with_trail = False  # a robot's hand paths cage it near t = T
+
+    @staticmethod
+    def sample_path(view, sample: int) -> np.ndarray:
+        """(S, J+1, 3) one sample's joint origins at every state: the constraint overlay's polyline."""
+        return view.points[:, sample]
+
     chart_error, chart_unit, chart_scale = "hand position error", "mm", 1000.0  # view.tip_error is in metres
     holds_text = "constraints hold at the step shown"
     violates_text = "constraints fail at the step shown (those see-through robots denser)"
@@ -95,11 +116,11 @@ class ChainKind:
         return view, chain_scene.hand_paths(view.points)
 
     def model_text(self, solver) -> str:
-        return chain_readouts.chain_model_text(solver.arm, solver.timesteps, solver.metadata)
+        return readouts.chain_model_text(solver.arm, solver.timesteps, solver.metadata)
 
     def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
         note = "  \n(out of reach: moved onto the reach ball, which bounds every pose the arm reaches)"
-        return chain_readouts.pose_text(target) + (note if clamped else "")
+        return readouts.pose_text(target) + (note if clamped else "")
 
     def target_words(self, target: np.ndarray) -> str:
         """The target in a recording's label."""
@@ -162,15 +183,15 @@ class ChainKind:
 
     def solve_text(self, solved, state: int, highlight: int, reason: str, error: str | None) -> str:
         request = solved.request
-        text = chain_readouts.chain_solve_text(
+        text = readouts.chain_solve_text(
             solved.view, state, highlight, sampler=request.sampler_label, seed=request.seed,
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, reason=reason,
         )  # fmt: skip
-        miss = chain_readouts.miss_text(solved.view, request.solver.arm, beyond_reach=request.target_clamped)
+        miss = readouts.miss_text(solved.view, request.solver.arm, beyond_reach=request.target_clamped)
         text += "" if miss is None else "  \n" + miss
         return text + (f"  \n**Newest solve failed** {error}" if error else "")
 
-    def legend_entries(self, settings, *, constraint_colors: bool, view, solved) -> list[Entry]:
+    def legend_entries(self, settings, *, constraint_colors: bool, view, solved, state=None) -> list[Entry]:
         """What each colour of the 3-D scene means now, for the panel's legend (and a recording's)."""
         follows = follows_one(settings.trail_of)
         if constraint_colors:  # robots and skeletons green or red, the highlighted robot too
@@ -190,22 +211,25 @@ class ChainKind:
         trail = "trail (show trail): the highlighted hand's path" if follows else "trail (show trail): the hands' paths"
         if settings.recording:  # no panel to turn it on or off
             trail = trail.replace(" (show trail)", "")
-        hand = Entry(Swatch((220, 40, 40)), "hand frame of the highlighted robot: x red, y green, z blue")
+        hand = Entry(Swatch(HAND_RED), "hand frame of the highlighted robot: x red, y green, z blue")
         ramp = Swatch(ACCENT_DARK, faint=ACCENT_FAINT) if follows else Swatch(DARK, faint=FAINT)
         trail_entry = Entry(ramp, trail, True)
         if settings.recording:  # a static page: what it draws alone, the target a frame no one can drag
-            target = Entry(Swatch((220, 25, 25)), "target: the frame at the target pose, x red, y green, z blue")
+            target = Entry(Swatch(TARGET_RED), "target: the frame at the target pose, x red, y green, z blue")
             return [*robots, *([trail_entry] if settings.show_trail else []), hand,
-                    *shown_layers(settings, solved), target]  # fmt: skip
-        # a comparison draws the same target beside, as a frame with a red origin
-        compared_target = "; beside, its frame" if getattr(solved, "compare", None) is not None else ""
+                    *shown_layers(settings, solved, state), target]  # fmt: skip
+        # a comparison draws the same target beside as a frame (viser's axes) with a red origin: its green and
+        # blue axes get a swatch of their own
+        compared = getattr(solved, "compare", None) is not None
+        frame_beside = [Entry(Swatch(FRAME_Y_GREEN), "beside: the target's frame, x red, y green, z blue")]
         entries = [
             *robots,
             *([trail_entry] if settings.show_trail else []),  # listed only while drawn, as every layer
             hand,
-            *shown_layers(settings, solved),
+            *shown_layers(settings, solved, state),
             # the 3-D target is the gizmo, no red cross (the legend must not list one)
-            Entry(Swatch(TARGET_RED), "target: the gizmo's pose (drag its arrows and rings)" + compared_target),
+            Entry(Swatch(TARGET_RED), "target: the gizmo's pose (drag its arrows and rings)"),
+            *(frame_beside if compared else []),
         ]
         measure = getattr(view, "rotation_measure", "rotation") if view is not None else "rotation"
         if measure not in ("rotation", "none"):

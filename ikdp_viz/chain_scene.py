@@ -15,10 +15,9 @@ import torch
 
 from ikdp.rotations import matrix_to_quaternion
 from ikdp.solver import SolveResult
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, fade_colors, state_labels
+from ikdp_viz.scene import fade_colors, state_labels
+from ikdp_viz.style import ACCENT_DARK, ACCENT_FAINT, GHOST_DARK, GHOST_FAINT
 
-GHOST_FAINT = (238, 238, 238)  # the robots' meshes at t = T
-GHOST_DARK = (120, 120, 120)  # and at t = 0
 METRES_PER_RADIAN = 0.1  # ranks returned poses: a degree of rotation error counts as 1.7 mm of position
 
 __all__ = [
@@ -80,8 +79,9 @@ class ChainView:
         return int(np.argmin(self.final_error))
 
     def estimate_at(self, state: int) -> np.ndarray | None:
-        """(K, J+1, 3) the denoiser's x̂0 when it made state `state`; None at t = T or when not recorded."""
-        if self.estimate_points is None or state < 1:
+        """(K, J+1, 3) the denoiser's x̂0 when it made state `state`; None when not recorded, at t = T (no guess yet)
+        and at t = 0, where the guess is the final pose itself, hidden under it."""
+        if self.estimate_points is None or state < 1 or state >= self.num_states - 1:
             return None
         return self.estimate_points[state - 1]
 

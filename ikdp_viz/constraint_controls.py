@@ -25,20 +25,20 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.camera import camera_fit_3d
-from ikdp_viz.constraint_readout import readout_text
 from ikdp_viz.constraint_scene import (
-    FREE_AXIS_COLOR,
     LINK_CLEARANCE,
     TARGET_KINDS,
     beside_the_arm,
     build_constraints,
     holds,
     overlay_segments,
+    readout_text,
 )
-from ikdp_viz.lock_fields import lock_fields
 from ikdp_viz.scene import line_colors
-from ikdp_viz.style import OBSTACLE
+from ikdp_viz.style import FREE_AXIS_COLOR, OBSTACLE
+from ikdp_viz.typed_target import lock_fields
 
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
 FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
@@ -295,10 +295,8 @@ class ConstraintControls:
         choice = 0
         if self.last_pose is not None and solved.final_angles is not None:
             choice = int(np.argmin(np.abs(solved.final_angles - self.last_pose).sum(axis=-1)))
-        points = view.joints[:, choice] if hasattr(view, "joints") else view.points[:, choice]
-        segments, colors = overlay_segments(points, solved.state_violation[:, choice])
-        if hasattr(view, "joints"):  # above the grid, under the planar arms of the step shown (lifted higher)
-            segments[..., 2] += 0.001 * float(np.sum(view.lengths))
+        path = arm_kind(self.solver).sample_path(view, choice)
+        segments, colors = overlay_segments(path, solved.state_violation[:, choice])
         self.overlay = self.server.scene.add_line_segments(
             "/constraints/states", segments, line_colors(colors), thickness=2.0, thickness_units="screen"
         )

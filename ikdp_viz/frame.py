@@ -9,16 +9,72 @@ computed once, here. No viser here.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from ikdp_viz.clock import CLOCK_CHOICES
-from ikdp_viz.constraint_readout import unmet_reasons
-from ikdp_viz.constraint_scene import holds, met_text
-from ikdp_viz.emphasis import TRAIL_CHOICES
-from ikdp_viz.legend import Entry
-from ikdp_viz.scene import compare_curve, error_curves
+from ikdp_viz import readouts
+from ikdp_viz.constraint_scene import holds, met_text, unmet_reasons
+from ikdp_viz.scene import TRAIL_CHOICES, compare_curve, error_curves
+from ikdp_viz.style import Entry
+
+# The animation's clock: how long each state of the denoising stays on screen.
+CLOCK_CHOICES = ("noise level", "step")  # the panel's "clock" dropdown, the default first
+
+
+def noise_levels(labels: np.ndarray, sqrt_one_minus_alphas_cumprod) -> np.ndarray:
+    """(S+1,) the noise level sigma of each state: sqrt(1 - alphabar_t) at diffusion time t >= 1, 0 for the final pose.
+
+    `labels` are the states' diffusion times, T .. 0 (scene.state_labels); the schedule's
+    table is 0-based, so time t reads entry t - 1.
+    """
+    labels = np.asarray(labels, dtype=np.int64)
+    table = np.asarray(sqrt_one_minus_alphas_cumprod, dtype=np.float64)
+    if labels.ndim != 1 or labels.min() < 0 or labels.max() > len(table):
+        raise ValueError(f"labels: expected diffusion times 0 .. {len(table)}, got {labels.tolist()}")
+    return np.where(labels > 0, table[np.maximum(labels - 1, 0)], 0.0)
+
+
+def state_offsets(sigmas: np.ndarray, clock: str, seconds: float) -> np.ndarray:
+    """(S+1,) seconds after the start at which each state is shown; the last state at `seconds`.
+
+    "step": every state the same time. "noise level": state s stays on screen in proportion to
+    sigma_s - sigma_(s+1), the drop in noise level of the step that follows it.
+    """
+    if clock not in CLOCK_CHOICES:
+        raise ValueError(f"clock: expected one of {CLOCK_CHOICES}, got {clock!r}")
+    sigmas = np.asarray(sigmas, dtype=np.float64)
+    count = len(sigmas)
+    if count < 2:
+        return np.zeros(count)
+    drop = sigmas[0] - sigmas[-1]
+    if clock == "step" or drop <= 0:
+        return seconds * np.arange(count) / (count - 1)
+    fallen = np.maximum.accumulate(sigmas[0] - sigmas)  # monotone even if a schedule wobbled
+    return seconds * fallen / drop
+
+
+def clock_note(labels: np.ndarray, offsets: np.ndarray, sigmas: np.ndarray) -> str:
+    """One line for the panel: where the time goes, e.g. "t = 80 .. 33 (sigma > 0.9): 0.4 s of 4.0 s; ..."."""
+    total = float(offsets[-1])
+    if total <= 0 or len(labels) < 2:
+        return "No animation: the final pose is shown at once."
+    noisy = np.flatnonzero(sigmas > 0.9)
+    settled = np.flatnonzero(labels <= max(1, int(round(0.25 * labels[0]))))  # the last quarter of diffusion time
+    parts = []
+    if len(noisy) > 1:
+        seconds = offsets[min(noisy[-1] + 1, len(offsets) - 1)] - offsets[noisy[0]]  # until the next state shows
+        parts.append(f"t = {labels[noisy[0]]} .. {labels[noisy[-1]]} (σ > 0.9) take {seconds:.1f} s")
+    if len(settled):
+        parts.append(f"t = {labels[settled[0]]} .. 0 take {total - offsets[settled[0]]:.1f} s")
+    return f"of {total:.1f} s: " + "; ".join(parts) if parts else f"{total:.1f} s in all"
+
+
+def solve_noise_levels(solver, view) -> np.ndarray:
+    """(S+1,) the noise level sigma of each state of a solve's `view`, from `solver`'s schedule."""
+    return noise_levels(view.labels, solver.model.schedule.sqrt_one_minus_alphas_cumprod.cpu().numpy())
+
 
 HIGHLIGHT_CHOICES = "best"  # the highlight dropdown's first choice; the others are sample numbers from 1
 
@@ -111,11 +167,15 @@ class Frame:
 
 
 def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, animating_to: int | None,
-                error: str | None = None) -> Frame:  # fmt: skip
+                error: str | None = None, note: str | None = None) -> Frame:  # fmt: skip
     """The frame of `state` of `solved` as `settings` show it; `animating_to` is the playing animation's last state
-    (None when still); `palettes` caches the kind's colours per (solve, highlight, settings)."""
+    (None when still); `palettes` caches the kind's colours per (solve, highlight, settings); `note`: a line for
+    the readouts (the t asked for and the step shown instead)."""
     view = solved.view
     state = int(np.clip(state, 0, view.num_states - 1))
+    forward = getattr(solved, "forward", False)  # noise_it.py's forward process (a test's stand-in may lack it)
+    if forward:  # a trail up to the step shown would run ahead of the noising, to t = T
+        settings = dataclasses.replace(settings, show_trail=False)
     highlight = highlighted_sample(settings.highlight, solved)
     constraint_colors = settings.color_by_constraint and solved.state_violation is not None
     palette = palettes.get(kind, solved, highlight, settings.trail_of, constraint_colors)
@@ -124,16 +184,21 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     if solved.preview_of is not None:  # say which is shown
         text = (f"**Fast preview** ({solved.request.sampler_label}, {view.num_states - 1} steps) while the "
                 f"{solved.preview_of} solve runs  \n" + text)  # fmt: skip
+    if forward:
+        text = readouts.FORWARD_NOTE + "  \n" + text
     if solved.state_violation is not None:
         text += "  \n" + met_text(solved.state_violation, state, colored=constraint_colors)
     text += "".join("  \n" + line for line in unmet_reasons(solved))  # why, here too: the folder starts closed
     if solved.request.compare_note is not None:
         text += "  \n" + solved.request.compare_note
+    if note is not None:
+        text += "  \n" + note
     chart = error_curves(view, highlight, state, scale=kind.chart_scale)
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:
         chart = (*chart, compare_curve(view, solved.compare, highlight, scale=kind.chart_scale))
-    legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved)
+    shown = None if settings.recording else state  # a recording's one legend stands for every state it plays
+    legend = kind.legend_entries(settings, constraint_colors=constraint_colors, view=view, solved=solved, state=shown)
     last = view.num_states - 1
     return Frame(
         solved=solved, state=state, highlight=highlight, settings=settings, palette=palette, light=light,

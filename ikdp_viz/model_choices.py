@@ -1,6 +1,6 @@
 """The Model dropdown's entries: the checkpoints in a folder that drive the kind of arm this viewer draws.
 
-Each file's kind of arm is read once per version (checkpoint_headers.py): re-listing on every new
+Each file's kind of arm is read once per version (student.py): re-listing on every new
 tab costs a stat per file.
 """
 
@@ -12,10 +12,9 @@ import numpy as np
 
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.checkpoint_headers import checkpoint_header
 from ikdp_viz.messages import NewModel
 from ikdp_viz.session import initial_target
-from ikdp_viz.student import STUDENT, model_and_student
+from ikdp_viz.student import STUDENT, checkpoint_header, model_and_student
 
 
 def list_checkpoints(folder: Path, extra: Path | None = None) -> dict[str, Path]:

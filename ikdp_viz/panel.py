@@ -13,16 +13,19 @@ import numpy as np
 import viser
 import viser.uplot
 
-from ikdp_viz.joint_space_panel import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.learn_panel import (
-    LearnControls,
-    build_clock,
-    build_compare,
-    build_legend,
-    build_share_button,
-    build_target_inputs,
-    build_trail_of,
+from ikdp_viz.frame import CLOCK_CHOICES
+from ikdp_viz.joint_space import JointSpaceControls, build_joint_space_controls
+from ikdp_viz.scene import TRAIL_CHOICES
+from ikdp_viz.schedule_plot import schedule_curves
+from ikdp_viz.style import CHART_HIGHLIGHTED, CHART_MEDIAN, CHART_NOW
+from ikdp_viz.teach_panel import (
+    TeachControls,
+    build_rerun_controls,
+    build_schedule_folder,
+    build_tour_controls,
+    build_words_folder,
 )
+from ikdp_viz.words import define
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -97,7 +100,8 @@ class Panel:
     checkpoint: viser.GuiDropdownHandle
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
-    learn: LearnControls  # what makes the denoising readable (learn_panel.py)
+    learn: LearnControls  # what makes the denoising readable (panel.py)
+    teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teach_panel.py)
 
 
 def build_panel(
@@ -109,11 +113,14 @@ def build_panel(
     checkpoint_labels: tuple[str, ...],
     checkpoint_label: str,
     model_text: str,
+    alphas_cumprod,
 ) -> Panel:
+    """`alphas_cumprod` (T,): the model's schedule, which the Noise schedule folder plots."""
     # The panel in a column of its own beside the canvas, not floating over it: the canvas has a quarter fewer
     # pixels and the page stops compositing the panel over each frame (software WebGL, K = 16 animating:
     # 11.7 and 12.7 frames/s floating, 14.2 to 17.0 docked; docs/viewer.md, "Frames in the page").
     gui.main_panel.dock_right()
+    tour = build_tour_controls(gui)
     with gui.add_folder("Target"):
         target_text = gui.add_markdown("")
         target_inputs = build_target_inputs(gui)
@@ -134,19 +141,20 @@ def build_panel(
             "show trail", True, hint="Every pose from t = T to the current step, faint to dark"
         )
         trail_of = build_trail_of(gui)
-        show_estimate = gui.add_checkbox(
-            "show x̂0", False, hint="Ghosted in purple: the denoiser's estimate of the final pose at the step shown"
-        )
+        show_estimate = gui.add_checkbox("show x̂0", False, hint="Ghosted in purple at the step shown: " + define("x̂0"))
         prior_button = gui.add_button(
             "Draw from the prior", icon=viser.Icon.DICE,
-            hint="K poses from the model's training prior, in brown, until the next solve: what the samples start near",
+            hint="K poses, in brown until the next solve, of the poses the model was trained on, before any target: "
+            "p(pose), where the samples below are p(pose | target). " + define("prior"),
         )  # fmt: skip
         play_on_move = gui.add_checkbox("play on move", True, hint="Animate each new solve from t = T")
+        noise_it, again, again_text = build_rerun_controls(gui)
         # in the folder open at the start, so the teacher's full denoising is one click away (a model with a student)
         teacher_student = gui.add_button(
             "Show the teacher", icon=viser.Icon.SCHOOL, visible=False,
             hint="The model's distilled few-step student, or the teacher's full DDPM it was distilled from",
         )  # fmt: skip
+    schedule = build_schedule_folder(gui, schedule_curves(alphas_cumprod))
     legend = build_legend(gui)
     joint_space = build_joint_space_controls(gui)
     with gui.add_folder("Sampling"):
@@ -157,8 +165,8 @@ def build_panel(
         )  # fmt: skip
         sampler = gui.add_dropdown(
             "sampler", sampler_names, initial_value=sampler_names[0],
-            hint="student: the model's few-step student (distilled); ddpm: the paper's full denoising, all T steps; "
-            "ddim, dpmpp2m: fewer steps of the same model",
+            hint="; ".join(define(term) for term in ("DDPM", "DDIM", "DPM-Solver++", "student"))
+            + " (dpmpp2m is DPM-Solver++; ancestral: DDPM's noisy update on fewer steps)",
         )  # fmt: skip
         compare = build_compare(gui)
         steps = gui.add_slider(
@@ -167,9 +175,7 @@ def build_panel(
         )  # fmt: skip
         seed = gui.add_number("seed", 0, min=0, max=2**31 - 1, step=1)
         new_seed = gui.add_checkbox("new seed each move", False)
-        refine = gui.add_checkbox(
-            "refine (DLS)", False, hint="Damped-least-squares polish, drawn in teal beside the raw pose"
-        )
+        refine = gui.add_checkbox("refine (DLS)", False, hint="Drawn in teal beside the raw pose: " + define("DLS"))
         refine_steps = gui.add_slider(
             "refine steps", min=1, max=50, step=1, initial_value=DEFAULT_REFINE_STEPS, disabled=True
         )
@@ -179,10 +185,10 @@ def build_panel(
             data=(np.array([0.0, float(num_timesteps)]), np.zeros(2), np.zeros(2), np.full(2, np.nan)),
             series=(
                 viser.uplot.Series(label="t"),
-                viser.uplot.Series(label="median", stroke="#999999", width=1.5),
-                viser.uplot.Series(label="highlighted", stroke="#1f5ad2", width=2),
+                viser.uplot.Series(label="median", stroke=CHART_MEDIAN, width=1.5),
+                viser.uplot.Series(label="highlighted", stroke=CHART_HIGHLIGHTED, width=2),
                 viser.uplot.Series(
-                    label="now", stroke="#eb780a", width=0, points={"show": True, "size": 9, "fill": "#eb780a"}
+                    label="now", stroke=CHART_NOW, width=0, points={"show": True, "size": 9, "fill": CHART_NOW}
                 ),
             ),
             title="error against t",
@@ -203,9 +209,94 @@ def build_panel(
     with gui.add_folder("Model"):
         checkpoint = gui.add_dropdown("checkpoint", checkpoint_labels, initial_value=checkpoint_label)
         model_markdown = gui.add_markdown(model_text)
+    words = build_words_folder(gui)
+    teach = TeachControls(tour, noise_it, again, again_text, schedule, words)
     learn = LearnControls(trail_of, clock, clock_note, legend, share, target_inputs, compare)
     return Panel(
         target_text, timestep, previous_button, play_button, next_button, duration, show_trail, show_estimate,
         prior_button, play_on_move, samples, highlight, sampler, teacher_student, steps, seed, new_seed, refine,
-        refine_steps, readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn,
+        refine_steps, readout_text, plot, export_button, checkpoint, model_markdown, joint_space, learn, teach,
+    )  # fmt: skip
+
+
+# The panel's controls that make the denoising readable: whose trail, the clock, the legend, sharing a solve.
+@dataclass
+class TargetInputs:
+    """The target typed in the Target folder: x, y for a planar arm; a robot's position and rotation."""
+
+    xy: viser.GuiVector2Handle  # planar arm only
+    position_mm: viser.GuiVector3Handle  # a robot's hand position, millimetres
+    rotation_deg: viser.GuiVector3Handle  # and its rotation, roll pitch yaw in degrees (pose models)
+    go: viser.GuiButtonHandle  # solve the typed target
+
+    def show_for(self, kind: str, target_dim: int) -> None:
+        """Offer the fields of an arm of `kind` ("planar" or "chain"); rotation only for pose targets."""
+        self.xy.visible = kind == "planar"
+        self.position_mm.visible = kind != "planar"
+        self.rotation_deg.visible = kind != "planar" and target_dim == 7
+
+
+@dataclass
+class LearnControls:
+    trail_of: viser.GuiDropdownHandle  # the highlighted sample's trail (the paper's figure) or every sample's
+    clock: viser.GuiDropdownHandle  # the animation's time spaced by noise level or by step
+    clock_note: viser.GuiMarkdownHandle  # where the animation's time goes, said on screen
+    legend: viser.GuiHtmlHandle  # what each colour means (style.py; written by the scene writer)
+    share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
+    target: TargetInputs  # the target typed in the panel
+    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare.py)
+
+
+def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
+    return gui.add_dropdown(
+        "trail of", TRAIL_CHOICES, initial_value=TRAIL_CHOICES[0],
+        hint="highlighted: the paper's figure, one sample's denoising from faint to dark, the others light; "
+        "all samples: every sample's trail and arm dark",
+    )  # fmt: skip
+
+
+def build_clock(gui: viser.GuiApi) -> tuple[viser.GuiDropdownHandle, viser.GuiMarkdownHandle]:
+    clock = gui.add_dropdown(
+        "clock", CLOCK_CHOICES, initial_value=CLOCK_CHOICES[0],
+        hint="noise level: each step lasts in proportion to how much it lowers the noise level σ = √(1 − ᾱ_t), so "
+        "the animation dwells where the poses form; step: every step the same time",
+    )  # fmt: skip
+    return clock, gui.add_markdown("")
+
+
+def build_legend(gui: viser.GuiApi) -> viser.GuiHtmlHandle:
+    with gui.add_folder("Legend"):
+        return gui.add_html("")
+
+
+def build_share_button(gui: viser.GuiApi) -> viser.GuiButtonHandle:
+    return gui.add_button(
+        "Share this denoising (HTML)", icon=viser.Icon.SHARE,
+        hint="One HTML file of the solve on screen, playable and scrubbable in any browser with no server: "
+        "for a web page or a lecture",
+    )  # fmt: skip
+
+
+def build_target_inputs(gui: viser.GuiApi) -> TargetInputs:
+    xy = gui.add_vector2("x, y", (0.0, 0.0), step=0.01, hint="Type a target and press 'Solve this target'")
+    position = gui.add_vector3("x, y, z (mm)", (0.0, 0.0, 0.0), step=1.0, visible=False, hint="The hand's position")
+    rotation = gui.add_vector3(
+        "roll, pitch, yaw (°)", (0.0, 0.0, 0.0), step=1.0, visible=False,
+        hint="The hand's rotation: about x, then y, then z, in degrees",
+    )  # fmt: skip
+    go = gui.add_button("Solve this target", icon=viser.Icon.TARGET)
+    return TargetInputs(xy, position, rotation, go)
+
+
+COMPARE_CHOICES = ("off", "ddim", "dpmpp2m", "ddpm")  # the "compare with" dropdown: off, or a sampler
+
+
+def build_compare(gui: viser.GuiApi) -> viser.GuiDropdownHandle:
+    return gui.add_dropdown(
+        "compare with", COMPARE_CHOICES, initial_value="off",
+        hint="Same noise, two samplers: this sampler too, from the very same x_T, drawn beside with its own "
+        "trail, in the same colours; the chart adds its tip error. DDPM is stochastic; DDIM and DPM-Solver++ "
+        "follow the deterministic ODE (ordinary differential equation: a noise-free path from x_T to a pose); "
+        "teacher: the teacher's deterministic run a distilled student is trained to match; "
+        "student: the student's few steps",
     )  # fmt: skip

@@ -11,15 +11,35 @@ from dataclasses import dataclass
 import numpy as np
 
 from ikdp_viz import readouts, scene
-from ikdp_viz.constraint_scene import HOLDS, HOLDS_OTHERS, VIOLATES, VIOLATES_OTHERS, sample_tints
-from ikdp_viz.emphasis import OTHERS_FINAL, emphasis_colors, follows_one
-from ikdp_viz.legend import Entry, Swatch
-from ikdp_viz.scene import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, REFINED, TIP_DARK, TIP_FAINT, fade_colors
-from ikdp_viz.style import ESTIMATE, OBSTACLE, PRIOR, TARGET_RED
+from ikdp_viz.constraint_scene import sample_tints
+from ikdp_viz.scene import emphasis_colors, fade_colors, follows_one
+from ikdp_viz.student import student_sampling
+from ikdp_viz.style import (
+    ACCENT_DARK,
+    ACCENT_FAINT,
+    DARK,
+    ESTIMATE,
+    FAINT,
+    HOLDS,
+    HOLDS_OTHERS,
+    JOINT_SPACE_DOT,
+    OBSTACLE,
+    OTHERS_FINAL,
+    PRIOR,
+    REFINED,
+    TARGET_RED,
+    TIP_DARK,
+    TIP_FAINT,
+    TRAIL_FAINT,
+    VIOLATES,
+    VIOLATES_OTHERS,
+    Entry,
+    Swatch,
+)
+from ikdp_viz.words import model_words
 
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
 PLAYING_FOLLOWED_STATES = 12  # the same for the one sample followed (the default picture)
-JOINT_SPACE_DOT = (60, 60, 60)  # the joint-space view's dots of the other samples: dark at every step
 
 
 @dataclass(frozen=True)
@@ -38,8 +58,18 @@ class PlanarKind:
     name = "planar"
     default_sampler = ("ddpm", 20)  # the paper's sampler; the steps apply if the user picks one that skips
     opens_on_student = False  # the paper's figure first; a planar DDPM solve takes milliseconds anyway
+    opens_with_trail = True  # the paper's figure: the trail from noise to the pose
     chart_error, chart_unit, chart_scale = "tip error", "bone lengths", 1.0  # the chart's y: view.tip_error * scale
     holds_text = "constraints hold at the step shown (the others lighter)"
+
+    @staticmethod
+    def sample_path(view, sample: int) -> np.ndarray:
+        """(S, N+1, 3) one sample's joints at every state, lifted just above the grid and under the arms of the step
+        shown: the constraint overlay's polyline."""
+        points = view.joints[:, sample]
+        points = np.concatenate([points, np.full((*points.shape[:-1], 1), 0.001 * float(np.sum(view.lengths)))], -1)
+        return points
+
     violates_text = "constraints fail at the step shown"
 
     def configure_panel(self, panel) -> None:
@@ -65,7 +95,8 @@ class PlanarKind:
         return view, scene.trail_points(view.joints)
 
     def model_text(self, solver) -> str:
-        return readouts.model_text(solver.num_links, solver.lengths, solver.timesteps, solver.metadata)
+        student_steps = None if solver.student is None else student_sampling(solver.student)[1]
+        return model_words(solver.num_links, solver.lengths, solver.timesteps, solver.metadata, student_steps)
 
     def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
         return readouts.target_text(target, clamped, solver.reach)
@@ -116,10 +147,10 @@ class PlanarKind:
             refine_steps=request.refine_steps, solve_seconds=solved.solve_seconds, error=error, reason=reason,
         )  # fmt: skip
 
-    def legend_entries(self, settings, *, constraint_colors: bool, view, solved) -> list[Entry]:
+    def legend_entries(self, settings, *, constraint_colors: bool, view, solved, state=None) -> list[Entry]:
         """What each colour of the planar scene means now, for the panel's legend (and a recording's)."""
         if follows_one(settings.trail_of):
-            trail = Entry(Swatch(ACCENT_DARK, faint=ACCENT_FAINT), "trail of the highlighted sample: t = T → 0", True)
+            trail = Entry(Swatch(ACCENT_DARK, faint=TRAIL_FAINT), "trail of the highlighted sample: t = T → 0", True)
             others = Entry(Swatch(OTHERS_FINAL, faint=FAINT), "the other samples (light)", True)
             # one dot at the step shown, pale near t = T and orange near t = 0: a ramp line read as a row of tips
             tips = Entry(
@@ -141,25 +172,29 @@ class PlanarKind:
         else:
             entries += [highlighted, others]
         entries.append(tips)
-        entries += [*shown_layers(settings, solved), Entry(Swatch(TARGET_RED, "cross"), "target")]
+        entries += [*shown_layers(settings, solved, state), Entry(Swatch(TARGET_RED, "cross"), "target")]
         if settings.recording:  # a static page: what it draws alone (no joint space)
             return entries
         if settings.joint_space and view is not None:  # the square's marks, named apart from the target's ✕
             if view.num_links == 2:
-                entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's exact solutions"))
+                entries.append(Entry(Swatch(TARGET_RED, "cross"), "joint space: the target's two exact solutions, "
+                                     "elbow up and elbow down (named beside them)"))  # fmt: skip
             else:
                 entries.append(Entry(Swatch(JOINT_SPACE_DOT, "cross"), "joint space: the final samples"))
             entries.append(Entry(Swatch(JOINT_SPACE_DOT, "dot"), "joint space: the samples at the step shown"))
         return entries
 
 
-def shown_layers(settings, solved) -> list[Entry]:
+def shown_layers(settings, solved, state=None) -> list[Entry]:
     """The legend's x̂0, refined, prior, comparison and obstacle entries, for both arm kinds, live and recorded: only
-    while the scene draws them. x̂0 while the settings show it, the refined poses when the solve shown was polished,
+    while the scene draws them. x̂0 while the settings show it and, at a given state, the solve has a guess to draw
+    there (none at t = T, nor at t = 0 where it is the final pose; `state` None: a recording, which plays them all),
+    the refined poses when the solve shown was polished,
     the prior's draw while it is on screen, the compared sampler's poses beside the arm and the obstacles while drawn
     (none on a recording's page)."""
     entries = []
-    if settings.show_estimate:
+    drawn_estimate = state is None or solved is None or solved.view.estimate_at(state) is not None
+    if settings.show_estimate and drawn_estimate:
         control = "" if settings.recording else " (show x̂0)"  # a recording has no panel to turn it on or off
         entries.append(Entry(Swatch(ESTIMATE), f"x̂0{control}: the denoiser's guess of the final pose"))
     if solved is not None and solved.view.refined:

@@ -11,25 +11,38 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from ikdp_viz import meshes
+from ikdp_viz import robot_meshes
 from ikdp_viz.camera import Extent, camera_fit, over_the_point
-from ikdp_viz.emphasis import estimate_rows, follows_one, trail_rows
 from ikdp_viz.frame import Frame
 from ikdp_viz.scene import (
     ARM_LIFT,
     HIGHLIGHT_LIFT,
-    REFINED,
     REFINED_LIFT,
     TARGET_LIFT,
     arm_placement,
     circle_segments,
+    estimate_rows,
+    follows_one,
     grid_segments,
     line_colors,
     polyline_segments,
+    trail_rows,
     trail_until,
 )
-from ikdp_viz.style import ARM_PIXELS, ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, TARGET_RED
-from ikdp_viz.view_parts import prior_lines, removed, start_rebuild
+from ikdp_viz.style import (
+    ARM_PIXELS,
+    BASE,
+    ESTIMATE,
+    GRID_CELL,
+    GRID_SECTION,
+    LINE_PIXELS,
+    REACH_RING,
+    REFINED,
+    TARGET_RED,
+    prior_lines,
+    removed,
+    start_rebuild,
+)
 
 SAMPLE_NODES = ("trail", "estimate_lines", "refined_lines", "refined_tips", "links", "followed_links", "joints", "tips")
 OTHER_PIXELS = 2.0  # the other samples' links while one is followed: thin and light, as the paper's figure draws them
@@ -55,7 +68,7 @@ class PlanarView:
         start_rebuild(self, solver, target)
         scene = self.server.scene
         lengths = solver.lengths
-        self.sizes = meshes.ArmSizes.for_lengths(lengths)
+        self.sizes = robot_meshes.ArmSizes.for_lengths(lengths)
         inner, outer = solver.reach
         self.reach = float(outer)
         unit = float(np.mean(lengths))
@@ -67,15 +80,15 @@ class PlanarView:
                     scene.add_line_segments(
                         f"/workspace/{name}",
                         circle_segments(radius, 96, z=-0.01 * unit),  # 96 look round; each costs the page
-                        colors=(150, 150, 150),
+                        colors=REACH_RING,
                         thickness=LINE_PIXELS,
                         thickness_units="screen",
                     )  # fmt: skip
                 )
-        base = meshes.base_mesh(self.sizes.base)
+        base = robot_meshes.base_mesh(self.sizes.base)
         nodes.append(
             scene.add_mesh_simple(
-                "/base", base.vertices, base.faces, color=(90, 90, 90), cast_shadow=False, receive_shadow=False
+                "/base", base.vertices, base.faces, color=BASE, cast_shadow=False, receive_shadow=False
             )
         )
         # The page's control (drei's PivotControls) limits the sum of the drags since it was drawn, not the
@@ -91,7 +104,7 @@ class PlanarView:
         )  # fmt: skip
         self.gizmo.on_update(self._track_drag)  # first: viser awaits async callbacks in the order given
         self.gizmo.on_update(self._gizmo_update)
-        cross = meshes.cross_mesh(self.sizes.cross)
+        cross = robot_meshes.cross_mesh(self.sizes.cross)
         self.cross = scene.add_mesh_simple(
             "/target_cross", cross.vertices, cross.faces, color=TARGET_RED, cast_shadow=False, receive_shadow=False,
             position=self.cross_position(camera_fit(self.reach)[0]),
@@ -99,16 +112,7 @@ class PlanarView:
         self._static_nodes = [*nodes, self.gizmo, self.cross]
 
     def _grid(self, half_width: float):
-        """The ground grid out to `half_width`: a line every half bone length, darker every bone length."""
-        # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
-        # 82 lines cost the page as much as the 16 arms (docs/viewer.md, "Frames in the page")
-        unit = self.unit
-        grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
-        colors = np.broadcast_to(
-            np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8), grid.shape
-        )
-        return self.server.scene.add_line_segments("/grid", grid, colors=colors.copy(), thickness=1.0,
-                                                   thickness_units="screen")  # fmt: skip
+        return grid_under(self.server.scene, "/grid", half_width, self.unit)
 
     def extent(self) -> Extent:
         """The part of the plane this view draws in: the workspace disc (the grid around it is background)."""
@@ -258,7 +262,7 @@ class PlanarView:
         spheres = dict(lod="off", cast_shadow=False, receive_shadow=False, visible=False)
         identity = lambda count: np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))  # noqa: E731
         origin = lambda count: np.zeros((count, 3))  # noqa: E731
-        joint, tip = meshes.sphere_mesh(self.sizes.joint), meshes.sphere_mesh(self.sizes.tip)
+        joint, tip = robot_meshes.sphere_mesh(self.sizes.joint), robot_meshes.sphere_mesh(self.sizes.tip)
         self.trail = scene.add_line_segments(
             "/arm/trail", np.zeros((1, 2, 3)), colors=(255, 255, 255), thickness=LINE_PIXELS, **lines
         )
@@ -299,3 +303,13 @@ class PlanarView:
                 handle.remove()
                 setattr(self, name, None)
         self.nodes_shape = self._refined_of = None
+
+
+def grid_under(scene, name: str, half_width: float, unit: float, x: float = 0.0):
+    """The ground grid out to `half_width` about (x, 0): a line every half bone length, darker every bone length."""
+    # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
+    # 82 lines cost the page as much as the 16 arms (docs/viewer.md, "Frames in the page")
+    grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
+    colors = np.broadcast_to(np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8), grid.shape)
+    return scene.add_line_segments(name, grid + np.array([x, 0.0, 0.0], dtype=grid.dtype), colors=colors.copy(),
+                                   thickness=1.0, thickness_units="screen")  # fmt: skip

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import numpy as np
 
+from ikdp_viz.chain_scene import ChainView
 from ikdp_viz.scene import SolveView
 
 
@@ -36,6 +40,12 @@ def sample_note(view, highlight: int, reason: str | None, error_name: str, raw_b
     if view.refined and best and raw_best != highlight:
         raw_line = f"by raw {error_name} at t = 0 the best is sample {raw_best + 1}"
     return note, raw_line
+
+
+FORWARD_NOTE = (  # the readouts' first line while noise_it.py's forward process is on screen
+    "**Noise it**: the final poses mixed with one noise ε as training does, x_t = √ᾱ_t · x_0 + √(1 − ᾱ_t) · ε; "
+    "t = 0 is the poses themselves, t = T pure noise (no trail: the path goes on to t = T)"
+)
 
 
 def solve_text(
@@ -73,23 +83,6 @@ def solve_text(
     return "  \n".join(lines)
 
 
-def model_text(num_links: int, lengths, num_timesteps: int, metadata: dict) -> str:
-    """A checkpoint's arm, schedule, denoiser and the accuracy measured when it was saved."""
-    model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
-    shown_lengths = ", ".join(f"{length:g}" for length in lengths)
-    lines = [
-        f"**N** = {num_links} links (lengths {shown_lengths}), **T** = {num_timesteps}",
-        f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation "
-        f"{model.get('representation', '?')}, schedule {model.get('schedule', {}).get('kind', '?')}",
-    ]
-    if "tip_error_median" in metrics:
-        lines.append(
-            f"**trained** {metrics.get('step', '?')} steps: median tip error {metrics['tip_error_median']:.4f}, "
-            f"p95 {metrics.get('tip_error_p95', float('nan')):.4f} bone lengths ({metrics.get('sampler', '')})"
-        )
-    return "  \n".join(lines)
-
-
 def error_range(tip_error: np.ndarray) -> tuple[int, int]:
     """Whole decades (low, high), as log10 exponents, holding every positive tip error; at least one apart."""
     positive = tip_error[tip_error > 0]
@@ -98,3 +91,140 @@ def error_range(tip_error: np.ndarray) -> tuple[int, int]:
     low = int(np.floor(np.log10(max(float(positive.min()), 1e-6))))
     high = int(np.ceil(np.log10(float(positive.max()))))
     return low, max(high, low + 1)
+
+
+# The 3-D viewer's panel texts, in millimetres and degrees, from plain values: no viser here.
+def pose_text(target: np.ndarray) -> str:
+    """The target: position in mm, then (a pose target) its rotation as the quaternion (w, x, y, z)."""
+    x, y, z = 1000 * np.asarray(target[:3])
+    text = f"**Target** x = {x:+.1f}, y = {y:+.1f}, z = {z:+.1f} mm"
+    if len(target) < 7:
+        return text
+    w, qx, qy, qz = target[3:7]
+    return text + f"  \nwxyz = ({w:.3f}, {qx:+.3f}, {qy:+.3f}, {qz:+.3f})"
+
+
+def error_pair(position_m: float, rotation_rad: float, measure: str = "rotation") -> str:
+    """A hand error in mm and degrees; `measure` (ChainView.rotation_measure) says what the degrees are: the
+    rotation, a free axis's angle ("z axis"), or nothing ("none": position only)."""
+    position = f"{1000 * position_m:.1f} mm"
+    if measure == "none":
+        return position
+    angle = f"{np.degrees(rotation_rad):.2f}°"
+    return f"{position} / {angle}" if measure == "rotation" else f"{position} / {angle} ({measure})"
+
+
+def target_kind_text(measure: str) -> str | None:
+    """A line saying what a partial target asks for (ChainView.rotation_measure); None for a full pose."""
+    if measure == "rotation":
+        return None
+    if measure == "none":
+        return "**Position only**: any hand rotation counts; the errors are the hand's distance alone"
+    return f"**The hand's {measure} free**: any turn about it counts; the angle is that axis's miss"
+
+
+def chain_solve_text(
+    view: ChainView,
+    state: int,
+    highlight: int,
+    *,
+    sampler: str,
+    seed: int,
+    refine_steps: int,
+    solve_seconds: float,
+    reason: str | None = None,
+) -> str:
+    """The step shown; the highlighted sample's hand error now and at t = 0; the K samples' median; the solve.
+
+    Samples are ranked by ChainView.best_sample (position + 0.1 m per radian); `reason`: readouts.sample_note.
+    """
+    last = view.num_states - 1
+    raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1]))
+    note, raw_line = sample_note(view, highlight, reason, "hand error", raw_best)
+    measure = view.rotation_measure
+    lines = [
+        f"**Step** {state} of {last} (t = {int(view.labels[state])})",
+        f"**Hand error**, sample {highlight + 1} of {view.num_samples}{note}: "
+        f"{error_pair(view.position_error[state, highlight], view.rotation_error[state, highlight], measure)} now, "
+        f"{error_pair(view.position_error[last, highlight], view.rotation_error[last, highlight], measure)} at t = 0",
+        f"median of K = {view.num_samples} at t = 0: "
+        f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]), measure)}",
+    ]
+    if view.refined:
+        lines.append(
+            f"refined ({refine_steps} DLS steps): "
+            f"{error_pair(view.final_position_error[highlight], view.final_rotation_error[highlight], measure)}"
+        )
+    if raw_line:
+        lines.append(raw_line)
+    kind = target_kind_text(measure)
+    if kind is not None:
+        lines.insert(1, kind)
+    lines.append(f"**Solve** {1000 * solve_seconds:.1f} ms ({sampler}, {last} steps, seed {seed})")
+    return "  \n".join(lines)
+
+
+def miss_text(view: ChainView, arm, *, beyond_reach: bool) -> str | None:
+    """What the panel says when the best returned pose (refined when refinement is on) misses the target by more
+    than the arm's tolerance (1 mm, 1°); None when it reaches.
+
+    It says "out of reach" only where the target lies beyond the reach: its position as asked lay outside the
+    reach ball, which bounds every pose the arm reaches, so the point solved (moved onto the ball) is the nearest
+    there can be, and the best pose's miss of it is the nearest reached pose's. Inside the ball the model's miss
+    proves nothing of the reach, so the miss is said plainly, with no cause.
+    """
+    best = view.best_sample()
+    position, rotation = view.final_position_error[best], view.final_rotation_error[best]
+    measure = view.rotation_measure
+    if position <= arm.position_tolerance and (measure == "none" or rotation <= arm.rotation_tolerance):
+        return None
+    pair = error_pair(position, rotation, measure)
+    if beyond_reach:
+        return (f"**Out of reach**: the target lies beyond the arm's reach; the nearest pose reached (sample "
+                f"{best + 1}) misses it by {pair}")  # fmt: skip
+    tolerance = f"{1000 * arm.position_tolerance:g} mm"
+    tolerance += "" if measure == "none" else f" / {np.degrees(arm.rotation_tolerance):g}°"
+    return f"**No sample reaches the target**: the best (sample {best + 1}) misses it by {pair}, beyond {tolerance}"
+
+
+def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
+    """A chain checkpoint's robot, schedule, denoiser and the accuracy measured when it was saved."""
+    model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
+    lines = [
+        f"**Robot** {arm.base_link} → {arm.ee_link}, {arm.num_joints} joints, {arm.target} targets, "
+        f"**T** = {num_timesteps}",
+        f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation {model.get('representation', '?')}",
+    ]
+    if metrics:
+        lines.append(saved_metrics_text(metrics))
+    if arm.recorded_urdf_path is not None and arm.chain_description() is None:
+        # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show;
+        # by the file's name only, as the recorded path is the training machine's
+        name = Path(arm.recorded_urdf_path).name
+        lines.append(f"**No meshes**: no {name} here (`pip install example-robot-data`); skeletons only")
+    return "  \n".join(lines)
+
+
+def saved_metrics_text(metrics: dict) -> str:
+    """The accuracy a chain checkpoint measured when it was saved, in words with units (mm, degrees), not raw keys."""
+    numbers = {key: float(value) for key, value in metrics.items() if isinstance(value, (int, float))}
+    statistics = (("median", "median"), ("mean", "mean"), ("95th percentile", "p95"))
+    position = [f"{name} {1000 * numbers[f'tip_error_{key}']:.1f} mm" for name, key in statistics
+                if f"tip_error_{key}" in numbers]  # fmt: skip
+    rotation = [f"{name} {math.degrees(numbers[f'rotation_error_{key}']):.1f}°" for name, key in statistics
+                if f"rotation_error_{key}" in numbers]  # fmt: skip
+    parts = []
+    if position:
+        parts.append("hand position error " + ", ".join(position))
+    if rotation:
+        parts.append("rotation error " + ", ".join(rotation))
+    if "limit_violations" in numbers:
+        parts.append(f"{numbers['limit_violations']:g} joint-limit violations")
+    how = []
+    if "step" in numbers:
+        how.append(f"{numbers['step']:,.0f} training steps")
+    if "eval_targets" in numbers:
+        how.append(f"{numbers['eval_targets']:g} targets")
+    if isinstance(metrics.get("sampler"), str):
+        how.append(metrics["sampler"])
+    return "**at save**" + (f" ({', '.join(how)})" if how else "") + ": " + "; ".join(parts)

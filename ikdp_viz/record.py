@@ -7,7 +7,7 @@
 The viewer's own arm view draws the solve, state by state, from the viewer's frames, on a private viser server
 that no browser connects to, while viser's scene serializer (`server.get_scene_serializer()`)
 records every scene message with the time it would be shown: each state after the one
-before by the viewer's clock (clock.py, spaced by noise level unless asked otherwise). The
+before by the viewer's clock (frame.py, spaced by noise level unless asked otherwise). The
 recording goes into viser's static client (`serializer.as_html()`, the whole page in one
 file) with a play / pause button, a time slider to scrub and the playback speed. The panel
 is not recorded (viser records the scene only), so a label in the scene says the step and the
@@ -25,10 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ikdp_viz.clock import CLOCK_CHOICES, state_offsets
-from ikdp_viz.emphasis import TRAIL_CHOICES
-from ikdp_viz.frame import ViewSettings
-from ikdp_viz.legend import legend_html
+from ikdp_viz.frame import CLOCK_CHOICES, ViewSettings, state_offsets
+from ikdp_viz.scene import TRAIL_CHOICES
+from ikdp_viz.style import legend_html
 
 PROGRAM = "python -m ikdp_viz.record"  # the usage line names the module, as a user types it
 SHORTEST_STATE = 1 / 60  # seconds each state lasts at least in a recording, so the slider can reach each one
@@ -63,8 +62,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
 
     from ikdp_viz.arm_kinds import arm_kind, arm_view_class
     from ikdp_viz.camera import camera_over, move_cameras
-    from ikdp_viz.clock import solve_noise_levels
-    from ikdp_viz.frame import Palettes, build_frame
+    from ikdp_viz.frame import Palettes, build_frame, solve_noise_levels
 
     settings = dataclasses.replace(ViewSettings() if settings is None else settings, recording=True)  # its legend
     if settings.seconds <= 0:
@@ -195,7 +193,7 @@ def main(argv: list[str] | None = None) -> None:
     settings = ViewSettings(
         highlight=config.highlight, trail_of=config.trail_of, show_estimate=config.show_estimate,
         clock=config.clock, seconds=config.seconds,
-        show_trail=arm_kind(solver).name == "planar",  # as the viewer opens: a robot's hand paths cage it near t = T
+        show_trail=arm_kind(solver).opens_with_trail,  # as the viewer opens
     )  # fmt: skip
     try:
         config.output.parent.mkdir(parents=True, exist_ok=True)

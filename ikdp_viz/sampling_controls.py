@@ -8,8 +8,7 @@ Each change asks for a solve.
 from __future__ import annotations
 
 from ikdp.samplers import SAMPLERS, sampler_names
-from ikdp_viz.learn_panel import COMPARE_CHOICES
-from ikdp_viz.panel import Panel, highlight_options
+from ikdp_viz.panel import COMPARE_CHOICES, Panel, highlight_options
 from ikdp_viz.student import STUDENT, TEACHER, student_sampling, switch_label
 
 

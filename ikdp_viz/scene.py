@@ -17,14 +17,8 @@ import numpy as np
 import torch
 
 from ikdp import SolveResult, forward_kinematics
+from ikdp_viz.style import ACCENT_DARK, ACCENT_FAINT, DARK, FAINT, OTHERS_FINAL, TRAIL_FAINT, TRAIL_GAMMA
 
-FAINT = (226, 226, 226)  # pure noise, t = T: the paper's lightest lines
-DARK = (28, 28, 28)  # the final pose, t = 0
-ACCENT_FAINT = (205, 222, 245)  # the highlighted sample at t = T
-ACCENT_DARK = (20, 90, 210)  # the highlighted sample at t = 0
-TIP_FAINT = (248, 222, 190)  # tip markers at t = T
-TIP_DARK = (235, 120, 10)  # tip markers at t = 0
-REFINED = (0, 150, 190)  # the damped-least-squares polish of the final pose: teal, not the green of "constraints hold"
 FADE_GAMMA = 2.0  # how late the lines darken: weight of DARK at state s is (s / S) ** FADE_GAMMA
 ERROR_FLOOR = 1e-6  # tip errors below this are charted at it (log10 of 0 is -inf)
 # Heights above the plane, in joint radii, that set what a top-down view draws on top of what: the
@@ -106,8 +100,9 @@ class SolveView:
     estimate_joints: np.ndarray | None = None  # (S, K, N+1, 2) the denoiser's x̂0 at the step into state s+1
 
     def estimate_at(self, state: int) -> np.ndarray | None:
-        """(K, N+1, 2) what the denoiser believed the final pose to be when it made state `state`; None at t = T."""
-        if self.estimate_joints is None or state < 1:
+        """(K, N+1, 2) what the denoiser believed the final pose to be when it made state `state`; None at t = T (no
+        guess made yet) and at t = 0, where the guess is the final pose itself and would hide under it, unseen."""
+        if self.estimate_joints is None or state < 1 or state >= self.num_states - 1:
             return None
         return self.estimate_joints[state - 1]
 
@@ -286,3 +281,43 @@ def compare_curve(view, compare, highlight: int, *, scale: float = 1.0) -> np.nd
     order = np.argsort(compare.labels, kind="stable")
     values = np.log10(np.maximum(scale * compare.tip_error[:, highlight], ERROR_FLOOR))[order]
     return np.interp(x, compare.labels[order].astype(np.float64), values)
+
+
+# What the default picture stresses, as the paper's figure does: one sample's denoising, the others in the background.
+TRAIL_CHOICES = ("highlighted", "all samples")  # the panel's "trail of" dropdown, the default first
+
+
+def follows_one(trail_of: str) -> bool:
+    """The trail and the dark colours belong to the highlighted sample alone (the default picture)."""
+    if trail_of not in TRAIL_CHOICES:
+        raise ValueError(f"trail_of: expected one of {TRAIL_CHOICES}, got {trail_of!r}")
+    return trail_of == TRAIL_CHOICES[0]
+
+
+def emphasis_colors(num_states: int, num_samples: int, highlight: int, trail_of: str) -> tuple[np.ndarray, np.ndarray]:
+    """(arm colours, trail colours), each (S+1, K, 3) uint8: the colour of each sample at each state.
+
+    Following one sample, its trail runs from faint to dark blue while its arm is dark blue at every
+    state (so the pose being followed is never lost in the noise), and the other samples fade from
+    faint to a light grey. With "all samples", arms and trails share the faint-to-dark ramp.
+    """
+    if not follows_one(trail_of):
+        colors = sample_colors(num_states, num_samples, highlight)
+        return colors, colors
+    trail = np.repeat(fade_colors(num_states, FAINT, OTHERS_FINAL)[:, None], num_samples, axis=1)
+    trail[:, highlight] = fade_colors(num_states, TRAIL_FAINT, ACCENT_DARK, gamma=TRAIL_GAMMA)
+    arms = trail.copy()
+    arms[:, highlight] = ACCENT_DARK
+    return arms, trail
+
+
+def estimate_rows(num_samples: int, highlight: int, trail_of: str) -> slice:
+    """The samples whose x̂0 is ghosted: the highlighted one's alone when it is followed (16 are a tangle)."""
+    return slice(highlight, highlight + 1) if follows_one(trail_of) else slice(0, num_samples)
+
+
+def trail_rows(num_samples: int, num_segments: int, highlight: int, trail_of: str) -> slice:
+    """The trail's rows (of K * num_segments, sample-major) to draw: the highlighted sample's, or all."""
+    if not follows_one(trail_of):
+        return slice(0, num_samples * num_segments)
+    return slice(highlight * num_segments, (highlight + 1) * num_segments)

@@ -5,7 +5,7 @@ Gizmo callbacks, panel callbacks and the solve worker never touch a scene node: 
 the order they were posted, and plays the animation between them; the loop is the clock.
 Each picture is first a plain `Frame` (frame.py) built from one snapshot (the solve on
 screen, the state, the panel's view settings); the arm view (planar_view.py or
-robot_view.py, its nodes), the side views and the panel's outputs (panel_output.py) are
+robot_view.py, its nodes), the side views and the panel's outputs (scene_writer.py) are
 all written from that frame inside one `server.atomic()`, so they cannot disagree.
 """
 
@@ -16,16 +16,28 @@ import time
 
 import numpy as np
 import viser
+import viser.uplot
 
 import ikdp
+from ikdp_viz import readouts
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.camera import fit_fields_of_view
-from ikdp_viz.clock import solve_noise_levels, state_offsets
-from ikdp_viz.frame import Frame, Palettes, ViewSettings, build_frame, highlighted_sample
-from ikdp_viz.message_loop import MessageLoop
+from ikdp_viz.frame import (
+    CLOCK_CHOICES,
+    Frame,
+    Palettes,
+    ViewSettings,
+    build_frame,
+    clock_note,
+    highlighted_sample,
+    solve_noise_levels,
+    state_offsets,
+)
+from ikdp_viz.joint_space_nodes import Stage
 from ikdp_viz.messages import (
     Animation,
     Call,
+    MessageLoop,
     NewModel,
     PlaceTarget,
     Redraw,
@@ -37,10 +49,10 @@ from ikdp_viz.messages import (
     TabOpened,
     TogglePlay,
 )
-from ikdp_viz.panel import Panel
-from ikdp_viz.panel_output import PanelOutput
+from ikdp_viz.panel import Panel, plot_axes, plot_scales
 from ikdp_viz.scene import nearest_state
-from ikdp_viz.stage import Stage
+from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data
+from ikdp_viz.style import COMPARE_STROKE, Entry, legend_html
 
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 NOISE_HOLD = 0.6  # seconds pure noise (t = T) shows before a played denoising moves (the noisy steps pass fast)
@@ -68,6 +80,7 @@ class SceneWriter:
         self._unseen = False  # the solve on screen waits at pure noise for a tab to open, to play then
         self.wait_for_tab = False  # with no tab open, a solve to animate waits at pure noise (the command line's)
         self._replay_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
+        self.snap_note: str | None = None  # a t asked for that the sampler does not visit, said in the readouts
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
         # still the newest; for benchmarks/viz_latency.py
         self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
@@ -76,7 +89,7 @@ class SceneWriter:
             wait=lambda: None if self.animation is None else 1.0 / FRAMES_PER_SECOND,  # the next frame, or none
             failed=lambda: setattr(self, "animation", None),  # a failed frame is reported; the loop goes on, still
         )  # fmt: skip
-        # any thread: queue a message; wait until all posted are applied; stop the loop (message_loop.py)
+        # any thread: queue a message; wait until all posted are applied; stop the loop (messages.py)
         self.post, self.flush, self.close, self.on_loop_thread = (
             self.loop.post, self.loop.flush, self.loop.close, self.loop.on_thread
         )  # fmt: skip
@@ -115,8 +128,10 @@ class SceneWriter:
             self.animation = None  # a user's step pauses the animation
             if self.solved is not None:
                 state = self.state + message.delta if message.state is None else message.state
+                self.snap_note = None
                 if message.timestep is not None:
                     state = nearest_state(self.solved.view.labels, message.timestep)
+                    self.snap_note = snap_note(self.solved.view.labels, message.timestep, state)
                 self._draw_state(state)
         elif isinstance(message, TogglePlay):
             self._toggle_play()
@@ -152,7 +167,7 @@ class SceneWriter:
         if solved.request.model is not self.solver:
             return  # a solve of the model that was replaced
         self.animation, self._unseen = None, False
-        self.solved, self.error = solved, None
+        self.solved, self.error, self.snap_note = solved, None, None
         self.view.clear_prior()  # the prior's draw was for the solve before
         preview = solved.preview_of is not None
         if self.after_solve is not None and message.newest and not preview:
@@ -254,6 +269,7 @@ class SceneWriter:
         return build_frame(
             self.kind, self.solved, state, self.settings(), palettes=self._palettes,
             animating_to=None if self.animation is None else self.animation.last, error=self.error,
+            note=self.snap_note,
         )  # fmt: skip
 
     def _draw_state(self, state: int) -> None:
@@ -303,9 +319,92 @@ class SceneWriter:
         self.output.waiting(self.error)
 
 
+def snap_note(labels: np.ndarray, asked: float, state: int) -> str | None:
+    """The readouts' line when the slider asked for a t the sampler never visits (a few-step sampler's gaps)."""
+    shown = int(labels[state])
+    if round(float(asked)) == shown:
+        return None
+    times = [int(label) for label in labels]
+    visits = ", ".join(map(str, times)) if len(times) <= 12 else f"{len(times)} of them"
+    return (
+        f"t = {float(asked):g} is no step of this sampler (it visits t = {visits}): the nearest, t = {shown}, is shown"
+    )
+
+
 def hide_toast(client) -> None:
     """Ask `client`'s page to close viser's "Software WebGL rendering detected" notification (viser's own message:
     the notification has a fixed id; a page with a GPU never shows it, and the message then does nothing)."""
     from viser._messages import RemoveNotificationMessage
 
     client._websock_connection.queue_message(RemoveNotificationMessage(SOFTWARE_WEBGL_TOAST))
+
+
+# The panel's outputs, written from a `Frame`: slider, readouts, legend, chart, clock note, play button, target.
+class PanelOutput:
+    """Writes the parts of the panel that show the frame on screen."""
+
+    def __init__(self, panel: Panel):
+        self.panel = panel
+        self._chart_series = tuple(panel.plot.series)  # the chart's own series; a comparison adds one
+        self._chart_compared: str | None = None  # the sampler whose curve the chart shows besides, if any
+        self._legend: tuple[Entry, ...] | None = None
+        self._chart_solve = None  # the solve the chart's scales were written for
+        self._schedule = None  # (solver, its ScheduleCurves) the schedule plot draws
+
+    def frame(self, frame: Frame, kind, solver) -> None:
+        """The slider, the chart and the readouts at the frame's state, and the legend of its colours."""
+        panel, view = self.panel, frame.view
+        panel.timestep.value = int(view.labels[frame.state])  # the app ignores slider updates with no client
+        if self._chart_solve is not frame.solved:
+            decades = readouts.error_range(view.tip_error * kind.chart_scale)
+            panel.plot.scales = plot_scales(solver.timesteps, *decades)
+            panel.plot.axes = plot_axes(*decades, kind.chart_unit)
+            panel.plot.title = f"{kind.chart_error} against t"
+            self._chart_solve = frame.solved
+        if frame.chart_compared != self._chart_compared:  # the series first: uPlot draws one column per series
+            compared = frame.chart_compared
+            extra = () if compared is None else (viser.uplot.Series(label=compared, stroke=COMPARE_STROKE, width=2),)
+            panel.plot.series = (*self._chart_series, *extra)
+            self._chart_compared = compared
+        panel.plot.data = frame.chart
+        panel.readout_text.content = frame.readout
+        self.schedule(frame, solver)
+        self.legend(frame.legend)
+
+    def schedule(self, frame: Frame, solver) -> None:
+        """The schedule plot: the model's sigma and alphabar, the step shown, the times its sampler visits."""
+        if self._schedule is None or self._schedule[0] is not solver:
+            self._schedule = (solver, schedule_curves(solver.model.schedule.alphas_cumprod))
+        view = frame.view
+        now = float(view.labels[frame.state])
+        self.panel.teach.schedule.data = schedule_plot_data(self._schedule[1], now, view.labels)
+
+    def legend(self, entries) -> None:
+        entries = tuple(entries)
+        if entries != self._legend:
+            self.panel.learn.legend.content = legend_html(list(entries))
+            self._legend = entries
+
+    def waiting(self, error: str | None) -> None:
+        """No solve on screen: say why."""
+        self.panel.readout_text.content = f"**Solve failed** {error}" if error else "Waiting for the first solve..."
+
+    def clock(self, view, sigmas: np.ndarray) -> None:
+        """Say on screen where the animation's time goes (the clock's spacing)."""
+        clock = str(self.panel.learn.clock.value)
+        offsets = state_offsets(sigmas, clock, float(self.panel.duration.value))
+        spacing = "by noise level σ = √(1 − ᾱ_t)" if clock == CLOCK_CHOICES[0] else "evenly by step"
+        self.panel.learn.clock_note.content = f"Time spaced {spacing}, {clock_note(view.labels, offsets, sigmas)}"
+
+    def playing(self, playing: bool) -> None:
+        button = self.panel.play_button
+        label, icon = ("Pause", viser.Icon.PLAYER_PAUSE) if playing else ("Play", viser.Icon.PLAYER_PLAY)
+        if button.label != label:
+            button.label, button.icon = label, icon
+
+    def new_model(self, num_timesteps: int) -> None:
+        panel = self.panel
+        panel.timestep.max = num_timesteps
+        panel.steps.max = num_timesteps
+        panel.steps.value = min(panel.steps.value, num_timesteps)
+        self._chart_solve = None

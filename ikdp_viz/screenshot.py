@@ -234,7 +234,8 @@ def main(argv: list[str] | None = None) -> None:
                     print(f"wrote {name} ({time.monotonic() - connected:.1f} s into the animation)")
                 browser.close()
                 return
-            page.get_by_text("Sampling", exact=True).click()  # fold it, so the readouts and the plot show
+            for folder in ("Noise schedule", "Sampling"):  # fold them, so the legend, the readouts and the plot show
+                page.get_by_text(folder, exact=True).click()
             if constrained:  # open the Constraints folder (at the panel's foot, under the readouts)
                 page.get_by_text("Constraints", exact=True).click()
             time.sleep(5.0)  # software WebGL: let a few frames render

@@ -21,6 +21,7 @@ from ikdp.tracking import TrackStep, track_step
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import NEAR_WEIGHT, checkable, final_violations, partial_target, state_violation
+from ikdp_viz.same_noise import rerun_seed
 from ikdp_viz.scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.student import matched_its_teacher, sampler_label, solve_title, student_sampling, target_title
@@ -55,6 +56,7 @@ class SolveRequest:
     follow_from: np.ndarray | None = None  # follow mode: the pose kept last, from which ikdp.tracking's step goes
     target_clamped: bool = False  # the point asked for lay outside the workspace (a robot's reach ball): `target` is
     # the nearest point inside it
+    rerun: int = 0  # again from the same x_T: run r > 0 keeps the seed's x_T and reseeds the step noise (same_noise.py)
 
     @property
     def model(self) -> ikdp.Solver:
@@ -98,6 +100,7 @@ class Solved:
     # which one fails, for the readouts' "why none meets"
     followed: TrackStep | None = None  # follow mode: ikdp.tracking's step to this target
     followed_sample: int | None = None  # the sample whose returned pose is drawn as the pose that step kept
+    forward: bool = False  # the forward process of a solve's poses (noise_it.py), not a denoising
     reaches_unconstrained: bool | None = None  # where no pose reaches under locks or obstacles: whether the same
     # noise solved without them reaches (they cause the miss) or not (they do not); None: not asked
 
@@ -158,6 +161,8 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
     solver = request.solver
     # x_T drawn as the solve itself would draw it first: the main solve is the same with or without a comparison
     noise = torch.randn((1, request.num_samples, solver.noise_dim), generator=generator, device=solver.device)
+    if request.rerun:  # the same x_T, new noise for every step after it: only a stochastic sampler changes
+        generator.manual_seed(rerun_seed(request.seed, request.rerun))
     after_noise = generator.get_state()
 
     def run(constraints) -> ikdp.SolveResult:
@@ -219,10 +224,11 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
     view, trail = arm_kind(request.solver).drawable(result, request.solver, request.target, partial=partial)
     compare = compare_trail = None
     if request.compare_sampler is not None:
+        compare_seed = request.seed + 1 if not request.rerun else rerun_seed(request.seed + 1, request.rerun)
         other = request.compared_by.solve(
             request.target[None], num_samples=request.num_samples, sampler=request.compare_sampler,
             steps=request.compare_steps, spacing=request.compare_spacing, return_trajectory=True,
-            generator=torch.Generator(device=solver.device).manual_seed(request.seed + 1), initial_noise=noise,
+            generator=torch.Generator(device=solver.device).manual_seed(compare_seed), initial_noise=noise,
             callback=stop_when(cancel),
         )  # fmt: skip
         if other.stopped:

@@ -10,10 +10,11 @@ from the very same x_T; and a robot's drag shows the student while the teacher's
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import ikdp
-from ikdp_viz.checkpoint_headers import checkpoint_header
+from ikdp.checkpoint import CheckpointError, read_checkpoint
 
 STUDENT = "student"  # the sampler dropdown's and "compare with"'s name for the student
 TEACHER = "teacher"  # "compare with": the teacher's sampler the student was trained to match, from the same x_T
@@ -121,3 +122,36 @@ def opening_sampler(kind, student: ikdp.Solver | None, asked_for_student: bool =
     sampler, steps = kind.default_sampler
     first = student is not None and (kind.opens_on_student or asked_for_student)
     return (STUDENT if first else sampler), steps
+
+
+# What the viewer reads of a checkpoint file without building its model: the kind of arm it drives and its
+@dataclass(frozen=True)
+class CheckpointHeader:
+    arm_kind: str  # "planar" or "chain" (ikdp_viz.arm_kinds)
+    distill: dict | None  # the student's record of its teacher; None for a model trained from scratch
+
+
+_headers: dict[tuple[Path, float, int], CheckpointHeader | None] = {}
+
+
+def checkpoint_header(path: Path) -> CheckpointHeader | None:
+    """The header of the checkpoint at `path`; None when the file is missing or ikdp cannot read it."""
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return None
+    key = (Path(path).resolve(), stat.st_mtime, stat.st_size)
+    if key not in _headers:
+        _headers[key] = read_header(Path(path))
+    return _headers[key]
+
+
+def read_header(path: Path) -> CheckpointHeader | None:
+    try:
+        payload = read_checkpoint(path)
+    except (CheckpointError, OSError):
+        return None
+    arm = payload["model"].get("arm")  # absent or None: a planar arm described by its `lengths`
+    kind = str(arm.get("kind", "planar")) if isinstance(arm, dict) else "planar"
+    distill = payload.get("distill")
+    return CheckpointHeader(kind, distill if isinstance(distill, dict) else None)

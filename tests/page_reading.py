@@ -16,7 +16,7 @@ TIP_ERROR = re.compile(r"Tip error, sample (\d+) of (\d+)[^:\n]*: ([\d.]+) now, 
 HAND_ERROR = re.compile(r"Hand error, sample (\d+) of (\d+)[^:\n]*: ([\d.]+) mm(?: / ([\d.]+)°)?[^,\n]* now")
 PLANAR_TARGET = re.compile(r"Target x = ([+-][\d.]+), y = ([+-][\d.]+)")
 ROBOT_TARGET = re.compile(r"Target x = ([+-][\d.]+), y = ([+-][\d.]+), z = ([+-][\d.]+) mm")
-LENGTHS = re.compile(r"lengths ([\d., ]+)\)")
+LENGTHS = re.compile(r"bones ([\d., ]+) long")
 
 LEGEND_JS = """() => {
   const block = [...document.querySelectorAll('div')].find(d => (d.getAttribute('style') || '').includes('1.45'));

@@ -493,10 +493,8 @@ def shipped_model(model: str):
 # Sequences that meet a defect not fixed yet: (model, seed) -> the defect, in words. Each is a strict xfail, so the
 # sequence's pass after the fix flips it.
 KNOWN_DEFECTS: dict[tuple[str, int], str] = {
-    (PLANAR_MODEL, 1): "with show x̂0 on, the legend lists x̂0 at t = 0, where it is the final pose itself: no purple is "
-    "seen (nor at t = T, where none is drawn)",
-    (ROBOT_MODEL, 2): "the 3-D compare view's target frame has green and blue axes, and the legend names that frame "
-    "only in the target's red entry: no swatch of its green",
+    (ROBOT_MODEL, 2): "after 'compare with: ddim' (its legend and scene agree: the frame beside has its green swatch), "
+    "clicking the Constraints folder shows no 'lock ...' control within 10 s",
 }
 
 

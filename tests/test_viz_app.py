@@ -154,8 +154,8 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
     brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
     assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
     # the others' final poses light lines, the highlighted one dark blue with its joints; the others' joints not drawn
-    from ikdp_viz.emphasis import OTHERS_FINAL
-    from ikdp_viz.scene import ACCENT_DARK, line_colors
+    from ikdp_viz.scene import line_colors
+    from ikdp_viz.style import ACCENT_DARK, OTHERS_FINAL
 
     link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]
     others = np.delete(link_colors, highlight, axis=0)
@@ -276,7 +276,7 @@ def test_every_legend_entry_names_something_drawn_and_the_export_lists_what_it_d
     exported PNG's legend left out the grey final arms under a title that ran over the reach circle."""
     from viz_helpers import read_png
 
-    from ikdp_viz import export
+    from ikdp_viz import downloads
 
     legend = app.writer.frame.legend
     tips = [entry for entry in legend if "tip" in entry.text]
@@ -291,7 +291,7 @@ def test_every_legend_entry_names_something_drawn_and_the_export_lists_what_it_d
     app.panel.learn.compare.value = "off"
     settle(app)
     pictures = []
-    monkeypatch.setattr(export, "write_gif", lambda picture, path, **_: pictures.append(picture) or path)
+    monkeypatch.setattr(downloads, "write_gif", lambda picture, path, **_: pictures.append(picture) or path)
     _, png = app.downloads.export(tmp_path)
     texts = [entry.text for entry in pictures[0].legend]
     drawn = [entry.text for entry in app.writer.frame.legend if entry.flat]
@@ -314,9 +314,8 @@ def test_the_gif_keeps_the_viewers_clock_and_colours(app, tmp_path):
     samples black at t = 0; it follows the viewer's noise-level clock and its light grey now."""
     from PIL import Image
 
-    from ikdp_viz.downloads import export_picture
-    from ikdp_viz.emphasis import OTHERS_FINAL
-    from ikdp_viz.export import gif_states
+    from ikdp_viz.downloads import export_picture, gif_states
+    from ikdp_viz.style import OTHERS_FINAL
 
     app.panel.duration.value = 4.0
     gif, _ = app.export(tmp_path)
@@ -353,7 +352,7 @@ def test_each_gif_frame_says_its_t_and_progress_is_reported_per_frame(app, tmp_p
     corner = [np.asarray(frame)[:40, :100, :3] for frame in frames]  # top left, outside the workspace's circle
     assert all((box.max(axis=-1) < 100).sum() > 20 for box in corner)  # dark text on every frame
     assert not np.array_equal(corner[0], corner[-1])  # t = T first, t = 0 last: different labels
-    from ikdp_viz.export import time_label
+    from ikdp_viz.downloads import time_label
 
     view = app.solved.view
     assert time_label(view, 0) == f"t = {app.solver.timesteps}" and time_label(view, view.num_states - 1) == "t = 0"
@@ -460,7 +459,7 @@ def test_switching_checkpoints_redraws_the_arm_with_its_links(app, tiny_checkpoi
     assert app.solver.num_links == 2 and app.solved.view.num_links == 2
     assert app.links.points.shape == (16 * 2, 2, 3) and app.joints.batched_positions.shape == (16 * 3, 3)
     assert app.panel.timestep.max == 12 and app.solved.view.num_states == 13
-    assert "**N** = 2 links" in app.panel.model_text.content
+    assert "**A 2-link planar arm** (N = 2)" in app.panel.model_text.content
     app.panel.checkpoint.value = "junk.pt"  # refused: the model stays, the panel says why
     assert app.solver.num_links == 2 and app.panel.checkpoint.value == "two.pt"
     assert "Could not load" in app.panel.model_text.content and "junk.pt" in app.panel.model_text.content
@@ -605,7 +604,7 @@ def test_a_fuzz_of_moves_sampler_changes_and_reloads_from_several_threads_ends_o
 
 
 def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
-    from ikdp_viz.clock import noise_levels, state_offsets
+    from ikdp_viz.frame import noise_levels, state_offsets
 
     app.panel.duration.value = 4.0
     note = app.panel.learn.clock_note.content
@@ -621,9 +620,7 @@ def test_the_animation_clock_is_spaced_by_noise_level_and_says_so(app):
 
 
 def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
-    from ikdp_viz.legend import css
-    from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK
-    from ikdp_viz.style import ESTIMATE, PRIOR, TARGET_RED
+    from ikdp_viz.style import ACCENT_DARK, ESTIMATE, PRIOR, REFINED, TARGET_RED, TIP_DARK, css
 
     legend = app.panel.learn.legend.content
     for words in ("x̂0", "refined", "prior"):  # show x̂0 off, refine off, no prior's draw: none of them is drawn
@@ -632,6 +629,7 @@ def test_the_legend_names_every_colour_drawn_and_follows_the_trail_setting(app):
     app.panel.refine.value = True
     settle(app)
     app.draw_prior()
+    app.panel.timestep.value = app.panel.timestep.max // 2  # x̂0 is drawn between t = T and t = 0
     legend = app.panel.learn.legend.content
     for color in (ACCENT_DARK, TIP_DARK, ESTIMATE, REFINED, PRIOR, TARGET_RED):
         assert css(color) in legend  # each colour of the scene has its swatch

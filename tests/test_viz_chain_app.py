@@ -185,6 +185,8 @@ def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
     settle(app)
     app.draw_prior()
     assert app.solved.view.refined
+    app.panel.timestep.value = app.panel.timestep.max // 2  # x̂0 is drawn between t = T and t = 0
+    settle(app)
     legend = app.panel.learn.legend.content
     assert "x̂0" in legend and "refined" in legend and "poses drawn from the prior" in legend
     app.panel.refine.value = False  # the next solve: not refined, and the prior's draw goes
@@ -193,7 +195,7 @@ def test_the_3d_legend_names_the_robots_skeletons_and_hand_frame(app):
 
 
 def test_the_followed_robot_stands_out_and_the_others_recede(app):
-    from ikdp_viz.chain_kind import HIGHLIGHTED_ROBOT
+    from ikdp_viz.style import HIGHLIGHTED_ROBOT
 
     writer, view = app.writer, app.solved.view
     highlight, num_joints = app.highlight_index(), view.num_joints

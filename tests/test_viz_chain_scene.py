@@ -13,7 +13,6 @@ import trimesh
 import ikdp
 from ikdp.robots import load_robot, spatial_arm
 from ikdp_viz.arm_kinds import ChainKind, arm_kind
-from ikdp_viz.chain_readouts import chain_model_text, chain_solve_text, error_pair, pose_text
 from ikdp_viz.chain_scene import (
     build_chain_view,
     ghost_colors,
@@ -24,6 +23,7 @@ from ikdp_viz.chain_scene import (
     pose_target,
     skeleton_segments,
 )
+from ikdp_viz.readouts import chain_model_text, chain_solve_text, error_pair, pose_text
 from ikdp_viz.robot_meshes import convex_hull, light_mesh, robot_meshes
 
 K = 3  # samples per solve: enough to have a best one

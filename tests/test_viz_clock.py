@@ -1,4 +1,4 @@
-"""The animation's clock spaced by noise level (ikdp_viz/clock.py) and the writer's Animation that follows it."""
+"""The animation's clock spaced by noise level (ikdp_viz/frame.py) and the writer's Animation that follows it."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
-from ikdp_viz.clock import clock_note, noise_levels, state_offsets
+from ikdp_viz.frame import clock_note, noise_levels, state_offsets
 from ikdp_viz.messages import Animation
 from ikdp_viz.scene import state_labels
 

@@ -11,19 +11,8 @@ from viz_helpers import drag_gizmo, running_app, settle
 import ikdp
 from ikdp.rotations import quaternion_to_matrix
 from ikdp_viz.chain_kind import GHOST_OPACITY, VIOLATING_GHOST_OPACITY
-from ikdp_viz.constraint_scene import (
-    HOLDS,
-    HOLDS_FAINT,
-    HOLDS_OTHERS,
-    VIOLATES,
-    VIOLATES_FAINT,
-    VIOLATES_OTHERS,
-    build_constraints,
-    first_holding_state,
-    holds,
-    overlay_segments,
-    sample_tints,
-)
+from ikdp_viz.constraint_scene import build_constraints, first_holding_state, holds, overlay_segments, sample_tints
+from ikdp_viz.style import HOLDS, HOLDS_FAINT, HOLDS_OTHERS, VIOLATES, VIOLATES_FAINT, VIOLATES_OTHERS
 
 K = 8
 
@@ -225,7 +214,7 @@ def test_a_pulled_solve_still_reaches_the_target_or_says_it_was_dropped(mode):
 def test_lock_fields_are_degrees_within_the_joints_limits_and_any_angle_wraps():
     """The "θ1 value" took 90 and used 90 rad; a robot's lock fields were radians beside targets
     in degrees, and a value past a limit was used as typed."""
-    from ikdp_viz.lock_fields import lock_fields
+    from ikdp_viz.typed_target import lock_fields
 
     planar = lock_fields(ikdp.PlanarArm([1.0, 1.0]))
     assert planar[0].label == "θ1 (°)" and planar[0].wraps

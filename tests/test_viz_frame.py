@@ -12,14 +12,15 @@ import pytest
 from viz_helpers import hand_made_result
 
 from ikdp_viz.chain_kind import ChainKind
-from ikdp_viz.constraint_scene import HOLDS, VIOLATES
 from ikdp_viz.frame import Palettes, ViewSettings, build_frame
 from ikdp_viz.planar_kind import PlanarKind
-from ikdp_viz.scene import ACCENT_DARK, REFINED, TIP_DARK, TIP_FAINT, build_view, trail_points
+from ikdp_viz.scene import build_view, trail_points
+from ikdp_viz.style import ACCENT_DARK, HOLDS, REFINED, TIP_DARK, TIP_FAINT, VIOLATES
 
 
 def planar_solve(violation=None):
     view = build_view(hand_made_result(), (1.0, 1.0), (2.0, 0.0))  # sample 1 lands on the target
+    view = dataclasses.replace(view, estimate_joints=view.joints[1:].copy())  # a guess of x̂0 into each state
     request = SimpleNamespace(
         sampler="ddpm",
         sampler_label="ddpm",
@@ -85,7 +86,7 @@ def test_the_legend_lists_x0_refined_and_the_prior_only_while_the_scene_draws_th
         if kind.name == "planar":
             solved = planar_solve()
             solved.view = dataclasses.replace(solved.view, refined=refined)
-            legend = build_frame(kind, solved, 2, settings, palettes=Palettes(), animating_to=None).legend
+            legend = build_frame(kind, solved, 1, settings, palettes=Palettes(), animating_to=None).legend  # mid-way
         else:
             solved = SimpleNamespace(view=SimpleNamespace(refined=refined, rotation_measure="rotation"))
             legend = kind.legend_entries(settings, constraint_colors=False, view=solved.view, solved=solved)
@@ -95,6 +96,18 @@ def test_the_legend_lists_x0_refined_and_the_prior_only_while_the_scene_draws_th
         recorded = dataclasses.replace(settings, recording=True)
         page = kind.legend_entries(recorded, constraint_colors=False, view=solved.view, solved=solved)
         assert listed_layers(page) == drawn - {"poses drawn from the prior"}
+
+
+def test_the_legend_lists_x0_only_at_the_states_where_the_scene_draws_it():
+    """With "show x̂0" on, the legend listed x̂0 at t = 0, where the guess is the final pose itself and no purple is
+    seen, and at t = T, where no guess is drawn: it is listed exactly where the scene has a guess to draw."""
+    kind, solved = PlanarKind(), planar_solve()
+    settings = ViewSettings(show_estimate=True, color_by_constraint=False)
+    last = solved.view.num_states - 1
+    for state in range(last + 1):
+        legend = build_frame(kind, solved, state, settings, palettes=Palettes(), animating_to=None).legend
+        drawn = solved.view.estimate_at(state) is not None
+        assert ("x̂0" in listed_layers(legend)) == drawn == (0 < state < last), state
 
 
 @pytest.mark.parametrize("kind", [PlanarKind(), ChainKind()], ids=["planar", "chain"])
@@ -115,3 +128,17 @@ def test_under_constraint_colours_the_legend_names_the_highlighted_samples_blue_
     frame = frame_of(solved, 2, trail_of="all samples")
     assert (frame.palette.trail[2, 0 : solved.view.num_links, 0] == ACCENT_DARK).all()  # sample 1's trail: blue
     assert any(entry.swatch.color == ACCENT_DARK for entry in frame.legend), [e.text for e in frame.legend]
+
+
+def test_the_3d_legend_gives_the_target_frame_beside_a_swatch_of_its_green_only_while_a_comparison_draws_it():
+    """The comparison beside a robot draws the target as a frame of viser's red, green and blue axes; the legend
+    named it only in the target's red entry, so its green axis had no swatch."""
+    from ikdp_viz.style import FRAME_Y_GREEN
+
+    settings = ViewSettings(color_by_constraint=False)
+    for compare in (None, object()):
+        solved = SimpleNamespace(view=SimpleNamespace(refined=False, rotation_measure="rotation"), compare=compare,
+                                 request=SimpleNamespace(compare_sampler="ddim"))  # fmt: skip
+        legend = ChainKind().legend_entries(settings, constraint_colors=False, view=solved.view, solved=solved)
+        greens = [entry for entry in legend if entry.swatch.color == FRAME_Y_GREEN]
+        assert len(greens) == (compare is not None), [entry.text for entry in legend]

@@ -24,7 +24,7 @@ from ikdp_viz.joint_space import (
     two_link_solutions,
     wrap_to_square,
 )
-from ikdp_viz.joint_space_scene import (
+from ikdp_viz.joint_space_nodes import (
     arrow_segments,
     cross_segments,
     curve_segments,

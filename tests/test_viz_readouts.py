@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from viz_helpers import hand_made_result
 
-from ikdp_viz.readouts import error_range, model_text, solve_text, target_text
+from ikdp_viz.readouts import error_range, solve_text, target_text
 from ikdp_viz.scene import build_view
 
 
@@ -53,18 +53,6 @@ def test_the_readout_says_why_the_highlighted_sample_is_the_one_followed():
         view, 2, 1, reason="chosen in the panel's highlight", **options
     )
     assert "sample 1 of 2 (kept by follow mode" in solve_text(view, 2, 0, reason="kept by follow mode (x)", **options)
-
-
-def test_model_text_shows_the_arm_the_schedule_and_the_saved_metrics():
-    metadata = {
-        "model": {"denoiser": {"kind": "film"}, "representation": "cossin", "schedule": {"kind": "linear"}},
-        "metrics": {"tip_error_median": 0.0267, "tip_error_p95": 0.048, "step": 10000, "sampler": "ddpm raw, K=1"},
-    }
-    text = model_text(4, (1.0, 1.0, 1.0, 1.0), 80, metadata)
-    assert "**N** = 4 links (lengths 1, 1, 1, 1), **T** = 80" in text
-    assert "**denoiser** film, representation cossin, schedule linear" in text
-    assert "10000 steps: median tip error 0.0267, p95 0.0480 bone lengths" in text
-    assert "trained" not in model_text(2, (1.0, 0.5), 20, {})
 
 
 def test_error_range_is_the_whole_decades_around_every_error():

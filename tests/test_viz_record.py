@@ -12,7 +12,7 @@ import zstandard
 from viz_helpers import running_app, settle
 
 import ikdp
-from ikdp_viz.clock import noise_levels, state_offsets
+from ikdp_viz.frame import noise_levels, state_offsets
 from ikdp_viz.record import HOLD_FINAL, SHORTEST_STATE, RecordSettings, file_name, record_html
 
 
@@ -171,7 +171,7 @@ def shown_nodes(data: dict) -> set[str]:
             if message.get("type") == "SetSceneNodeVisibilityMessage" and message["visible"]}  # fmt: skip
 
 
-# a legend word -> the node that draws it, per arm (planar_view.py, robot_view.py, view_parts.py)
+# a legend word -> the node that draws it, per arm (planar_view.py, robot_view.py, style.py)
 PLANAR_LEGEND_NODES = {"x̂0": "/arm/estimate", "refined": "/arm/refined", "poses drawn from the prior": "/prior",
                        "trail": "/arm/trail", "joint space": "/joint_space"}  # fmt: skip
 ROBOT_LEGEND_NODES = {"x̂0": "/samples/estimate", "refined": "/samples/refined", "poses drawn from the prior": "/prior",

@@ -12,11 +12,8 @@ import torch
 from viz_helpers import hand_made_result
 
 import ikdp
-from ikdp_viz import meshes
+from ikdp_viz import robot_meshes
 from ikdp_viz.scene import (
-    ACCENT_DARK,
-    DARK,
-    FAINT,
     LAYER_HEIGHT,
     arm_placement,
     build_view,
@@ -34,6 +31,7 @@ from ikdp_viz.scene import (
     trail_points,
     trail_until,
 )
+from ikdp_viz.style import ACCENT_DARK, DARK, FAINT
 
 
 def luminance(colors: np.ndarray) -> np.ndarray:
@@ -207,11 +205,13 @@ def test_error_curves_run_in_ascending_t_with_one_marker_at_the_current_state():
 
 
 def test_meshes_are_sized_to_the_arm_and_closed():
-    sizes = meshes.ArmSizes.for_lengths((2.0, 2.0))
+    sizes = robot_meshes.ArmSizes.for_lengths((2.0, 2.0))
     assert sizes.tip > sizes.joint > 0 and sizes.cross > sizes.joint
-    assert meshes.base_mesh(sizes.base).is_watertight and meshes.base_mesh(sizes.base).bounds[1, 2] <= 0
-    assert meshes.sphere_mesh(sizes.joint).is_watertight and len(meshes.sphere_mesh(sizes.joint).faces) == 20
-    cross = meshes.cross_mesh(sizes.cross)
+    assert robot_meshes.base_mesh(sizes.base).is_watertight and robot_meshes.base_mesh(sizes.base).bounds[1, 2] <= 0
+    assert (
+        robot_meshes.sphere_mesh(sizes.joint).is_watertight and len(robot_meshes.sphere_mesh(sizes.joint).faces) == 20
+    )
+    cross = robot_meshes.cross_mesh(sizes.cross)
     assert np.allclose(cross.bounds[:, 2], [-0.011 * sizes.cross, 0.011 * sizes.cross])  # flat, centred: the
     # scene writer lifts it (scene_writer.over_the_point)
     assert np.isclose(np.abs(cross.vertices[:, :2]).max(), sizes.cross * math.sqrt(0.5) + 0.11 * sizes.cross, rtol=0.2)
@@ -223,7 +223,7 @@ def test_importing_the_viewer_does_nothing_and_scene_code_never_imports_viser():
         "before = threading.active_count()\n"
         "out = io.StringIO()\n"
         "with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):\n"
-        "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.meshes, ikdp_viz.readouts\n"
+        "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.robot_meshes, ikdp_viz.readouts\n"
         "    import ikdp_viz.solve_worker, ikdp_viz.solving\n"
         "    assert 'viser' not in sys.modules, 'scene-building code imported viser'\n"
         "    import ikdp_viz.panel, ikdp_viz.session, ikdp_viz.scene_writer, ikdp_viz.app, ikdp_viz.__main__\n"
