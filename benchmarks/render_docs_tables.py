@@ -358,6 +358,25 @@ def one_target(data: dict):
     return header, rows
 
 
+def viz_robot_drag(data: dict):
+    """Per setup of benchmarks/viz_robot_drag.py: a Panda drag's server share, to the first frame and the full solve."""
+    header = ["setup", "first frame median / p95 ms", "full solve median / p95 ms", "moves"]
+    rows = []
+    for setup, row in data.items():
+        if setup == "machine":
+            continue
+        first, full = row["first_frame_ms"], row["full_solve_ms"]
+        rows.append(
+            [
+                setup,
+                f"{first['median']:.0f} / {first['p95']:.0f}",
+                f"{full['median']:.0f} / {full['p95']:.0f}",
+                str(row["moves"]),
+            ]
+        )
+    return header, rows
+
+
 def viz_page_latency(data: dict):
     """Per model: pointer move -> new pixels in the page, the server's share, and the way back to the pixels."""
     found = data["machine"]
@@ -485,6 +504,14 @@ TABLES = {
         tree_self_collision,
         "200 G1 targets from poses free of self-collision, K = 16 + 5 DLS steps, DDPM; solved: a pose with both "
         "hands within 1 mm and 1° (apart: and no overlap); s: the median wall time of 3 alternating rounds.",
+    ),
+    "viz_robot_drag": Table(
+        "viz_robot_drag.json",
+        "OMP_NUM_THREADS=1 python -m benchmarks.viz_robot_drag --setups",
+        viz_robot_drag,
+        "`ikdp_panda`, K = 16, 30 drag updates 3 cm apart, one torch thread: from the move's arrival in the server to "
+        "the end of the drawing of its first frame (pointer to pixels in the page: docs/viewer.md). The viewer opens "
+        "the Panda on its student (the first two rows).",
     ),
     "viz_page_latency": Table(
         "viz_page_latency.json",

@@ -35,7 +35,7 @@ import torch
 import viser
 
 import ikdp
-from ikdp.evaluation.machine import cpu_model
+from ikdp.evaluation.machine import cpu_model, machine_description
 from ikdp.shipped import shipped_checkpoint
 from ikdp_viz.app import VizApp
 from ikdp_viz.student import STUDENT
@@ -138,6 +138,7 @@ def main() -> None:
         print(f"| {label} | {first['median']:.0f} / {first['p95']:.0f} | {full['median']:.0f} / {full['p95']:.0f} |")
         runs[label] = {**row, "moves": args.moves, "cpu": cpu_model(), "python": platform.python_version(),
                        "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}  # fmt: skip
+    runs["machine"] = machine_description(1)  # the latest run's, its load average included
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(runs, indent=2) + "\n")
 
