@@ -23,9 +23,10 @@ import functools
 import math
 from pathlib import Path
 
+import numpy as np
 import torch
 
-from ikdp.arm_inputs import drawing_device, validate_target_rows
+from ikdp.arm_inputs import FEW_ROWS, drawing_device, validate_target_rows
 from ikdp.fused_chain import FusedChain
 from ikdp.joint_limits import JointLimits
 from ikdp.refine import damped_least_squares
@@ -565,8 +566,18 @@ class ChainArm(JointLimits):
         tensor = validate_target_rows(targets, self.target_dim)
         if self.target == "position":
             return tensor
-        norms = tensor[:, 3:].double().norm(dim=-1)
-        bad = (norms - 1).abs() > QUATERNION_TOLERANCE
+        if tensor.device.type == "cpu" and len(tensor) <= FEW_ROWS:  # one target's solve: NumPy's fixed cost
+            rows = tensor.detach().numpy()
+            norms = np.sqrt(np.square(rows[:, 3:].astype(np.float64)).sum(axis=-1))
+            bad = np.abs(norms - 1) > QUATERNION_TOLERANCE
+            if not bad.any():
+                return torch.from_numpy(
+                    np.concatenate([rows[:, :3], rows[:, 3:] / norms[:, None].astype(np.float32)], 1)
+                )
+            norms, bad = torch.from_numpy(norms), torch.from_numpy(bad)
+        else:
+            norms = tensor[:, 3:].double().norm(dim=-1)
+            bad = (norms - 1).abs() > QUATERNION_TOLERANCE
         if bool(bad.any()):  # the row named only then: nonzero costs more than the check
             row = int(torch.nonzero(bad)[0, 0])
             raise ValueError(
