@@ -260,7 +260,7 @@ class VizApp:
         """Gizmo callback. Async so viser runs it on its event loop in arrival order; it only queues work."""
         if event.phase == "start":
             return
-        point = arm_kind(self.solver).gizmo_target(self.solver, event.target)
+        point = arm_kind(self.solver).gizmo_target(self.solver, event.target, self.target)
         self.move_target(point, arrival=time.perf_counter(), from_gizmo=True, dragging=event.phase == "update")
 
     def show_state(self, state: int) -> None:

@@ -51,6 +51,16 @@ class ChainView:
     refined: bool  # the returned poses are the damped-least-squares polish of the last state
     estimate_points: np.ndarray | None = None  # (S, K, J+1, 3) the denoiser's x̂0 at the step into state s+1
     rotation_measure: str = "rotation"  # what rotation_error measures: "rotation", "none" (position only), "z axis"
+    # Several end effectors (a tree, E of them): `points` holds one polyline per end effector, base to hand, one after
+    # another (`polylines` their point counts), and the errors above are the worst hand's; each hand's own follow.
+    # One end effector: one polyline, each hand error the one above.
+    effector_names: tuple[str, ...] = ("hand",)  # the end effectors' link names, in the target's order
+    polylines: tuple[int, ...] = ()  # points per end effector's polyline; () one polyline of every point
+    effector_position_error: np.ndarray | None = None  # (S+1, K, E) metres, each hand's; None: position_error
+    effector_rotation_error: np.ndarray | None = None  # (S+1, K, E) radians, each hand's
+    final_effector_position_error: np.ndarray | None = None  # (K, E) of the returned poses
+    final_effector_rotation_error: np.ndarray | None = None  # (K, E)
+    effector_targets: np.ndarray | None = None  # (E, 7) each hand's target pose (or (E, 3) position); None: `target`
 
     @property
     def num_states(self) -> int:
@@ -63,6 +73,41 @@ class ChainView:
     @property
     def num_joints(self) -> int:
         return self.joint_values.shape[2]
+
+    @property
+    def num_effectors(self) -> int:
+        return len(self.effector_names)
+
+    @property
+    def point_counts(self) -> tuple[int, ...]:
+        """Points per polyline: one per end effector (a chain's one: every point)."""
+        return self.polylines or (self.points.shape[2],)
+
+    @property
+    def target_poses(self) -> np.ndarray:
+        """(E, 7) or (E, 3): each end effector's target, one row per hand."""
+        return self.target[None] if self.effector_targets is None else self.effector_targets
+
+    @property
+    def num_segments(self) -> int:
+        """Skeleton segments per sample: a chain's J, a tree's points less one per polyline."""
+        return self.points.shape[2] - len(self.point_counts)
+
+    @property
+    def hand_indices(self) -> np.ndarray:
+        """(E,) where each end effector's hand sits among `points`' points: the last of its polyline."""
+        return np.cumsum(self.point_counts) - 1
+
+    def hand_errors(self, state: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each hand's (position m, rotation rad), (K, E) each: at state `state`, or of the returned poses (None)."""
+        if state is None:
+            position, rotation = self.final_effector_position_error, self.final_effector_rotation_error
+            if position is None:
+                return self.final_position_error[:, None], self.final_rotation_error[:, None]
+            return position, rotation
+        if self.effector_position_error is None:
+            return self.position_error[state][:, None], self.rotation_error[state][:, None]
+        return self.effector_position_error[state], self.effector_rotation_error[state]
 
     @property
     def tip_error(self) -> np.ndarray:
@@ -132,19 +177,29 @@ def mesh_poses(arm, joint_values, link_index: np.ndarray, offsets: np.ndarray) -
     return frames[..., :3, 3].numpy(), matrix_to_quaternion(frames[..., :3, :3]).numpy()
 
 
-def skeleton_segments(points: np.ndarray) -> np.ndarray:
-    """Polylines (..., P, 3) -> their segments (M, 2, 3) in order, M = prod(...) * (P-1)."""
+def skeleton_segments(points: np.ndarray, polylines: tuple[int, ...] = ()) -> np.ndarray:
+    """Polylines (..., P, 3) -> their segments (M, 2, 3) in order, M = prod(...) * (P - E).
+
+    `polylines`: the point counts of the E polylines laid one after another along P (a tree's chains, which
+    share no segment: the last point of one is no joint of the next); () one polyline of all P points."""
     points = np.asarray(points)
-    return np.stack((points[..., :-1, :], points[..., 1:, :]), axis=-2).reshape(-1, 2, 3)
+    segments = np.stack((points[..., :-1, :], points[..., 1:, :]), axis=-2)  # (..., P-1, 2, 3)
+    if len(polylines) > 1:
+        joins = np.cumsum(polylines)[:-1] - 1  # a segment from one polyline's last point to the next's first
+        segments = np.delete(segments, joins, axis=-3)
+    return segments.reshape(-1, 2, 3)
 
 
-def hand_paths(points: np.ndarray) -> np.ndarray:
-    """Each sample's hand from state to state, (S+1, K, 2, 3) float32: state s holds the step from s-1 to s
-    (state 0 a point). The trail of a robot: K skeletons per state would hide the robots in a 3-D view.
-    Laid out as scene.trail_points (one segment per sample), so the shared `scene.trail_until` cuts it."""
-    hands = np.asarray(points)[:, :, -1]  # (S+1, K, 3)
+def hand_paths(points: np.ndarray, hands: np.ndarray | None = None) -> np.ndarray:
+    """Each sample's hands from state to state, (S+1, K*E, 2, 3) float32, sample-major: state s holds the step from
+    s-1 to s (state 0 a point). `hands` (E,): which points are hands; None: the last. The trail of a robot: K
+    skeletons per state would hide the robots in a 3-D view. Laid out as scene.trail_points (E segments per
+    sample), so the shared `scene.trail_until` cuts it."""
+    points = np.asarray(points)
+    hands = points[:, :, [-1] if hands is None else list(hands)]  # (S+1, K, E, 3)
     before = np.concatenate((hands[:1], hands[:-1]))
-    return np.stack((before, hands), axis=-2).astype(np.float32)
+    paths = np.stack((before, hands), axis=-2)  # (S+1, K, E, 2, 3)
+    return paths.reshape(points.shape[0], -1, 2, 3).astype(np.float32)
 
 
 def ghost_colors(num_states: int, num_samples: int, highlight: int | None) -> np.ndarray:
@@ -170,11 +225,16 @@ def rotation_measure(partial) -> str:
     return "axis ({:.2f}, {:.2f}, {:.2f})".format(*axis)
 
 
-def build_chain_view(result: SolveResult, arm, target, partial=None) -> ChainView:
+def build_chain_view(result: SolveResult, arm, target, partial=None, kind=None) -> ChainView:
     """The drawable arrays of the first target of a chain `solver.solve(..., return_trajectory=True)` result.
 
     `partial` (ikdp.PositionOnly or FreeAxis, the solve's partial target): the rotation errors measure its
-    residual, nothing for position only, the free axis's angle for a free axis."""
+    residual, nothing for position only, the free axis's angle for a free axis. `kind`: the arm kind
+    (chain_kind.ChainKind or TreeKind) that names the end effectors and measures each one's errors; None: a chain's."""
+    if kind is None:
+        from ikdp_viz.chain_kind import ChainKind  # here: chain_kind builds its views with this module
+
+        kind = ChainKind()
     if result.trajectory is None:
         raise ValueError("result: solve with return_trajectory=True, the viewer draws every state")
     target = np.asarray(target, dtype=np.float64).reshape(-1)
@@ -186,27 +246,29 @@ def build_chain_view(result: SolveResult, arm, target, partial=None) -> ChainVie
 
     measure = rotation_measure(partial)
     bound = None if partial is None else partial.bind(arm, 1, 1)
-
-    def rotation_error(joints: torch.Tensor) -> np.ndarray:
-        if arm.target_dim != 7 or measure == "none":
-            return np.zeros(joints.shape[:-1])
-        goals = goal.expand(*joints.shape[:-1], 7)
-        error = arm.rotation_error(joints, goals) if bound is None else bound.rotation_error(joints, goals)
-        return error.double().numpy()
-
+    position, rotation = kind.effector_errors(arm, trajectory, goal, bound, measure)  # (S+1, K, E) each
+    final_position, final_rotation = kind.effector_errors(arm, final, goal, bound, measure)  # (K, E) each
+    several = position.shape[-1] > 1
     estimates = None if result.estimates is None else result.estimates[:, 0].detach().cpu().double()
     return ChainView(
         target=target,
         labels=state_labels(result.timesteps),
         joint_values=trajectory.numpy(),
         points=arm.forward_kinematics(trajectory).numpy(),
-        position_error=arm.position_error(trajectory, goal).double().numpy(),
-        rotation_error=rotation_error(trajectory),
+        position_error=position.max(-1),
+        rotation_error=rotation.max(-1),
         final_joint_values=final.numpy(),
         final_points=arm.forward_kinematics(final).numpy(),
-        final_position_error=arm.position_error(final, goal).double().numpy(),
-        final_rotation_error=rotation_error(final),
+        final_position_error=final_position.max(-1),
+        final_rotation_error=final_rotation.max(-1),
         refined=not torch.equal(result.angles, result.raw_angles),
         estimate_points=None if estimates is None else arm.forward_kinematics(estimates).numpy(),
         rotation_measure=measure,
+        effector_names=kind.effector_names(arm),
+        polylines=kind.polylines(arm),
+        effector_position_error=position if several else None,
+        effector_rotation_error=rotation if several else None,
+        final_effector_position_error=final_position if several else None,
+        final_effector_rotation_error=final_rotation if several else None,
+        effector_targets=kind.pose_rows(arm, target) if several else None,
     )

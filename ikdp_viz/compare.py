@@ -200,9 +200,9 @@ class RobotCompareNodes:
             self._build(solved, reach)
         shown = nearest_state(compare.labels, float(solved.view.labels[frame.state]))
         lines = frame.palette.lines[min(frame.state, len(frame.palette.lines) - 1)]  # (K, 3) the main colours
-        segments = skeleton_segments(compare.points[shown]) + self.shift
+        segments = skeleton_segments(compare.points[shown], compare.polylines) + self.shift
         self.nodes["skeletons"].points = segments.astype(np.float32)
-        per_joint = np.repeat(lines, compare.num_joints, axis=0)[:, None]
+        per_joint = np.repeat(lines, compare.num_segments, axis=0)[:, None]
         self.nodes["skeletons"].colors = np.broadcast_to(per_joint, (len(segments), 2, 3))
         request = solved.request
         self.nodes["title"].text = request.compare_title(compare.num_states - 1)
@@ -215,17 +215,18 @@ class RobotCompareNodes:
     def _build(self, solved, reach: float) -> None:
         scene = self.server.scene
         self.shift = np.array([0.0, -SHIFT * reach, 0.0])
-        target = np.asarray(solved.view.target, dtype=np.float64)
-        wxyz = target[3:7] if len(target) == 7 else (1.0, 0.0, 0.0, 0.0)
         base = np.asarray(solved.view.points[0, 0, 0], dtype=np.float64)
         self.nodes["skeletons"] = scene.add_line_segments(
             "/compare/skeletons", np.zeros((1, 2, 3)), colors=(0, 0, 0), thickness=SKELETON_PIXELS,
             thickness_units="screen",
         )  # fmt: skip
-        self.nodes["target"] = scene.add_frame(
-            "/compare/target", axes_length=0.1 * reach, axes_radius=0.006 * reach, origin_color=TARGET_RED,
-            position=tuple(target[:3] + self.shift), wxyz=tuple(float(value) for value in wxyz),
-        )  # fmt: skip
+        for number, target in enumerate(np.asarray(solved.view.target_poses, dtype=np.float64)):  # one per hand
+            wxyz = target[3:7] if len(target) == 7 else (1.0, 0.0, 0.0, 0.0)
+            self.nodes["target" if number == 0 else f"target_{number}"] = scene.add_frame(
+                "/compare/target" if number == 0 else f"/compare/target_{number}", axes_length=0.1 * reach,
+                axes_radius=0.006 * reach, origin_color=TARGET_RED, position=tuple(target[:3] + self.shift),
+                wxyz=tuple(float(value) for value in wxyz),
+            )  # fmt: skip
         top = base + (0.0, 0.0, 1.2 * reach)
         self.nodes["title"] = scene.add_label("/compare/title", "", position=tuple(top + self.shift),
                                               anchor="bottom-center")  # fmt: skip

@@ -204,7 +204,7 @@ class ConstraintControls:
     def _add_obstacle(self, position, radius: float | None) -> int:
         radius = float(self.radius.value if radius is None else radius)
         if position is None:
-            position = obstacle_drop(self.solver.arm, self.last_pose, radius)
+            position = obstacle_drop(self.solver.arm, self.last_pose, radius, arm_kind(self.solver))
         entry = {"position": np.asarray(position, dtype=np.float64), "radius": radius, "nodes": []}
         index = len(self.obstacles)
         entry["nodes"] = obstacle_nodes(self.server, index, entry, planar=self.solver.arm.kind == "planar",
@@ -295,8 +295,8 @@ class ConstraintControls:
         choice = 0
         if self.last_pose is not None and solved.final_angles is not None:
             choice = int(np.argmin(np.abs(solved.final_angles - self.last_pose).sum(axis=-1)))
-        path = arm_kind(self.solver).sample_path(view, choice)
-        segments, colors = overlay_segments(path, solved.state_violation[:, choice])
+        path, polylines = arm_kind(self.solver).sample_path(view, choice)
+        segments, colors = overlay_segments(path, solved.state_violation[:, choice], polylines)
         self.overlay = self.server.scene.add_line_segments(
             "/constraints/states", segments, line_colors(colors), thickness=2.0, thickness_units="screen"
         )
@@ -314,7 +314,7 @@ def free_axis_segments(axis: np.ndarray, reach: float) -> np.ndarray:
     return np.concatenate([line, np.stack([ring[:-1], ring[1:]], axis=1)]).astype(np.float32)
 
 
-def obstacle_drop(arm, last_pose, radius: float) -> np.ndarray:
+def obstacle_drop(arm, last_pose, radius: float, kind) -> np.ndarray:
     """(3,) where a new obstacle goes: on the middle of the arm as it stands, so the easy solution is blocked (a
     robot's just in front of it, toward the camera, or its opaque meshes hide the sphere)."""
     if last_pose is None:
@@ -322,7 +322,7 @@ def obstacle_drop(arm, last_pose, radius: float) -> np.ndarray:
     points = arm.forward_kinematics(np.asarray(last_pose, dtype=np.float64)[None])[0].numpy()
     if points.shape[-1] == 3:
         reach = float(arm.reach[1])
-        camera = camera_fit_3d(arm.reach_center.double().numpy(), reach)[0]
+        camera = camera_fit_3d(kind.reach_center(arm), reach)[0]
         return beside_the_arm(points, radius, camera, LINK_CLEARANCE * reach)
     return np.concatenate([points[len(points) // 2], [0.0]])
 

@@ -155,13 +155,18 @@ def first_holding_state(violation: np.ndarray) -> int | None:
     return int(failing[-1]) + 1 if len(failing) else 0
 
 
-def overlay_segments(points: np.ndarray, violation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def overlay_segments(
+    points: np.ndarray, violation: np.ndarray, polylines: tuple[int, ...] = ()
+) -> tuple[np.ndarray, np.ndarray]:
     """One sample's joint positions at every state (S+1, P, 2 or 3) and violations (S+1,) -> line segments
-    (S * (P-1)... , 2, 3) and their colours (same, uint8): faint green where the state holds, faint red where not."""
+    (S * (P-1)... , 2, 3) and their colours (same, uint8): faint green where the state holds, faint red where not.
+    `polylines`: the point counts of the polylines along P (a tree's chains: none joined); () one polyline."""
     points = np.asarray(points, dtype=np.float32)
     if points.shape[-1] == 2:
         points = np.concatenate([points, np.zeros((*points.shape[:-1], 1), np.float32)], axis=-1)
     segments = np.stack([points[:, :-1], points[:, 1:]], axis=-2)  # (S+1, P-1, 2, 3)
+    if len(polylines) > 1:
+        segments = np.delete(segments, np.cumsum(polylines)[:-1] - 1, axis=1)  # one polyline's end to the next's start
     colors = np.where(holds(violation)[:, None, None, None], np.array(HOLDS_FAINT), np.array(VIOLATES_FAINT))
     colors = np.broadcast_to(colors, segments.shape).astype(np.uint8)
     return segments.reshape(-1, 2, 3), colors.reshape(-1, 2, 3)

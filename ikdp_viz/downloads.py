@@ -37,7 +37,7 @@ def export_picture(solved, settings, solver, legend=None):
     legend = [entry for entry in legend if entry.flat]
     legend.append(Entry(Swatch(TARGET_RED, "cross"), "target"))  # fmt: skip
     title = (f"IKDP {request.sampler_label}, K = {view.num_samples}, seed {request.seed}: "
-             f"{kind.target_words(request.target)}")  # fmt: skip
+             f"{kind.target_words(request.target, solver.arm)}")  # fmt: skip
     return drawing(
         solved, polylines, target, circle=circle, highlight=highlight, trail_of=settings.trail_of,
         arms=kind.arm_colors(palette), offsets=state_offsets(sigmas, settings.clock, settings.seconds), title=title,
@@ -166,7 +166,7 @@ class Drawing:
     """What the files draw, in the picture's plane: every state's polylines and how to colour them."""
 
     polylines: np.ndarray  # (S+1, K, P, 2) each sample's joints at each state, projected
-    target: np.ndarray  # (2,) the target, projected
+    target: np.ndarray  # (E, 2) the target (one per end effector), projected
     half_width: float  # the picture shows [-w, w] around `center`
     center: np.ndarray  # (2,)
     circle: float | None  # the workspace boundary's radius (planar), or None
@@ -188,13 +188,14 @@ def drawing(solved, polylines, target, *, circle, highlight: int, trail_of: str,
     """A Drawing of `solved` with the viewer's colours: `arms` (S+1, K, 3), the trail ramp from `trail_of`."""
     view = solved.view
     _, trail = emphasis_colors(view.num_states, view.num_samples, highlight, trail_of)
-    points = np.concatenate([np.asarray(polylines).reshape(-1, 2), np.asarray(target)[None, :2]])
-    low, high = points.min(axis=0), points.max(axis=0)
+    targets = np.asarray(target, dtype=np.float64).reshape(-1, 2)
+    points = np.concatenate([np.asarray(polylines).reshape(-1, 2), targets])
+    low, high = np.nanmin(points, axis=0), np.nanmax(points, axis=0)  # NaN: a break between a tree's chains
     if circle is not None:
         low, high = np.minimum(low, -circle), np.maximum(high, circle)
     center = (low + high) / 2
     return Drawing(
-        polylines=np.asarray(polylines), target=np.asarray(target)[:2], half_width=1.05 * float(np.max(high - low)) / 2,
+        polylines=np.asarray(polylines), target=targets, half_width=1.05 * float(np.max(high - low)) / 2,
         center=center, circle=circle, arms=arms, trail=trail, highlight=highlight, follows_one=follows_one(trail_of),
         labels=view.labels, offsets=np.asarray(offsets), title=title, legend=tuple(legend),
     )  # fmt: skip
@@ -236,7 +237,8 @@ def _draw_state(axes, picture: Drawing, state: int, *, trail: bool) -> None:
     chosen = picture.polylines[state, picture.highlight]
     color = picture.arms[state, picture.highlight] / 255
     axes.plot(chosen[:, 0], chosen[:, 1], color=color, linewidth=2.5, marker="o", markersize=3, zorder=top + 1)
-    axes.plot(*picture.target, marker="x", color=TARGET_RED_HEX, markersize=12, mew=3, zorder=top + 2)
+    axes.plot(picture.target[:, 0], picture.target[:, 1], linestyle="none", marker="x", color=TARGET_RED_HEX,
+              markersize=12, mew=3, zorder=top + 2)  # fmt: skip
 
 
 def write_trail_png(picture: Drawing, path: Path, *, size_pixels: int = 800) -> Path:

@@ -63,12 +63,12 @@ class PlanarKind:
     holds_text = "constraints hold at the step shown (the others lighter)"
 
     @staticmethod
-    def sample_path(view, sample: int) -> np.ndarray:
+    def sample_path(view, sample: int) -> tuple[np.ndarray, tuple[int, ...]]:
         """(S, N+1, 3) one sample's joints at every state, lifted just above the grid and under the arms of the step
-        shown: the constraint overlay's polyline."""
+        shown: the constraint overlay's polyline (one: no point counts)."""
         points = view.joints[:, sample]
         points = np.concatenate([points, np.full((*points.shape[:-1], 1), 0.001 * float(np.sum(view.lengths)))], -1)
-        return points
+        return points, ()
 
     violates_text = "constraints fail at the step shown"
 
@@ -85,8 +85,8 @@ class PlanarKind:
         """The nearest workspace point to `point` (a gizmo position's z is ignored), and whether it moved."""
         return scene.clamp_to_workspace(point, *solver.reach)
 
-    def gizmo_target(self, solver, gizmo) -> np.ndarray:
-        """The target a dragged gizmo asks for: its (x, y)."""
+    def gizmo_target(self, solver, gizmo, current) -> np.ndarray:
+        """The target a dragged gizmo asks for: its (x, y) (the one gizmo: nothing of `current` is kept)."""
         return np.asarray(gizmo.position, dtype=np.float64)[:2]
 
     def drawable(self, result, solver, target, partial=None) -> tuple[scene.SolveView, np.ndarray]:
@@ -101,7 +101,7 @@ class PlanarKind:
     def target_text(self, solver, target: np.ndarray, clamped: bool) -> str:
         return readouts.target_text(target, clamped, solver.reach)
 
-    def target_words(self, target: np.ndarray) -> str:
+    def target_words(self, target: np.ndarray, arm=None) -> str:
         """The target in a recording's label."""
         return f"target x = {target[0]:+.3f}, y = {target[1]:+.3f}"
 

@@ -94,10 +94,10 @@ def error_range(tip_error: np.ndarray) -> tuple[int, int]:
 
 
 # The 3-D viewer's panel texts, in millimetres and degrees, from plain values: no viser here.
-def pose_text(target: np.ndarray) -> str:
+def pose_text(target: np.ndarray, label: str = "Target") -> str:
     """The target: position in mm, then (a pose target) its rotation as the quaternion (w, x, y, z)."""
     x, y, z = 1000 * np.asarray(target[:3])
-    text = f"**Target** x = {x:+.1f}, y = {y:+.1f}, z = {z:+.1f} mm"
+    text = f"**{label}** x = {x:+.1f}, y = {y:+.1f}, z = {z:+.1f} mm"
     if len(target) < 7:
         return text
     w, qx, qy, qz = target[3:7]
@@ -142,19 +142,33 @@ def chain_solve_text(
     raw_best = int(np.argmin(view.position_error[-1] + 0.1 * view.rotation_error[-1]))
     note, raw_line = sample_note(view, highlight, reason, "hand error", raw_best)
     measure = view.rotation_measure
-    lines = [
-        f"**Step** {state} of {last} (t = {int(view.labels[state])})",
-        f"**Hand error**, sample {highlight + 1} of {view.num_samples}{note}: "
-        f"{error_pair(view.position_error[state, highlight], view.rotation_error[state, highlight], measure)} now, "
-        f"{error_pair(view.position_error[last, highlight], view.rotation_error[last, highlight], measure)} at t = 0",
-        f"median of K = {view.num_samples} at t = 0: "
-        f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]), measure)}",
-    ]
+    if view.num_effectors > 1:  # one line per hand, named by its link; the median is of the worst hand's errors
+        (now_position, now_rotation), (end_position, end_rotation) = view.hand_errors(state), view.hand_errors(last)
+        lines = [
+            f"**Step** {state} of {last} (t = {int(view.labels[state])})",
+            f"**Hand errors**, sample {highlight + 1} of {view.num_samples}{note}:",
+            *(f"{name}: {error_pair(now_position[highlight, e], now_rotation[highlight, e], measure)} now, "
+              f"{error_pair(end_position[highlight, e], end_rotation[highlight, e], measure)} at t = 0"
+              for e, name in enumerate(view.effector_names)),
+            f"median of K = {view.num_samples} at t = 0, worst hand: "
+            f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]), measure)}",
+        ]  # fmt: skip
+    else:
+        position, rotation = view.position_error[:, highlight], view.rotation_error[:, highlight]
+        lines = [
+            f"**Step** {state} of {last} (t = {int(view.labels[state])})",
+            f"**Hand error**, sample {highlight + 1} of {view.num_samples}{note}: "
+            f"{error_pair(position[state], rotation[state], measure)} now, "
+            f"{error_pair(position[last], rotation[last], measure)} at t = 0",
+            f"median of K = {view.num_samples} at t = 0: "
+            f"{error_pair(np.median(view.position_error[last]), np.median(view.rotation_error[last]), measure)}",
+        ]
     if view.refined:
-        lines.append(
-            f"refined ({refine_steps} DLS steps): "
-            f"{error_pair(view.final_position_error[highlight], view.final_rotation_error[highlight], measure)}"
-        )
+        position, rotation = view.hand_errors()
+        pairs = [error_pair(position[highlight, e], rotation[highlight, e], measure) for e in range(view.num_effectors)]
+        if view.num_effectors > 1:
+            pairs = [f"{name} {pair}" for name, pair in zip(view.effector_names, pairs, strict=True)]
+        lines.append(f"refined ({refine_steps} DLS steps): " + ", ".join(pairs))
     if raw_line:
         lines.append(raw_line)
     kind = target_kind_text(measure)
@@ -164,9 +178,11 @@ def chain_solve_text(
     return "  \n".join(lines)
 
 
-def miss_text(view: ChainView, arm, *, beyond_reach: bool) -> str | None:
+def miss_text(view: ChainView, arm, *, beyond_reach) -> str | None:
     """What the panel says when the best returned pose (refined when refinement is on) misses the target by more
-    than the arm's tolerance (1 mm, 1°); None when it reaches.
+    than the arm's tolerance (1 mm, 1°); None when it reaches. Several end effectors: it reaches when every hand is
+    within the tolerance; the hands that miss are named, each hand beyond reach said to be (`beyond_reach`: one
+    bool per end effector, or one for all).
 
     It says "out of reach" only where the target lies beyond the reach: its position as asked lay outside the
     reach ball, which bounds every pose the arm reaches, so the point solved (moved onto the ball) is the nearest
@@ -174,8 +190,11 @@ def miss_text(view: ChainView, arm, *, beyond_reach: bool) -> str | None:
     proves nothing of the reach, so the miss is said plainly, with no cause.
     """
     best = view.best_sample()
-    position, rotation = view.final_position_error[best], view.final_rotation_error[best]
     measure = view.rotation_measure
+    if view.num_effectors > 1:
+        return hands_miss_text(view, arm, best, np.broadcast_to(beyond_reach, (view.num_effectors,)))
+    beyond_reach = bool(np.all(beyond_reach))
+    position, rotation = view.final_position_error[best], view.final_rotation_error[best]
     if position <= arm.position_tolerance and (measure == "none" or rotation <= arm.rotation_tolerance):
         return None
     pair = error_pair(position, rotation, measure)
@@ -187,20 +206,43 @@ def miss_text(view: ChainView, arm, *, beyond_reach: bool) -> str | None:
     return f"**No sample reaches the target**: the best (sample {best + 1}) misses it by {pair}, beyond {tolerance}"
 
 
-def chain_model_text(arm, num_timesteps: int, metadata: dict) -> str:
-    """A chain checkpoint's robot, schedule, denoiser and the accuracy measured when it was saved."""
+def hands_miss_text(view: ChainView, arm, best: int, beyond_reach: np.ndarray) -> str | None:
+    """miss_text of several end effectors: the best sample's hands beyond the tolerances, each by its link's name."""
+    measure = view.rotation_measure
+    position, rotation = (errors[best] for errors in view.hand_errors())  # (E,) each
+    missed = (position > arm.position_tolerance) | ((measure != "none") & (rotation > arm.rotation_tolerance))
+    if not missed.any():
+        return None
+    far = [name for name, miss, out in zip(view.effector_names, missed, beyond_reach, strict=True) if miss and out]
+    misses = ", ".join(f"{name} by {error_pair(position[e], rotation[e], measure)}"
+                       for e, name in enumerate(view.effector_names) if missed[e])  # fmt: skip
+    if far:
+        return (f"**Out of reach**: the target of {', '.join(far)} lies beyond its arm's reach; the nearest pose "
+                f"reached (sample {best + 1}) misses {misses}")  # fmt: skip
+    tolerance = f"{1000 * arm.position_tolerance:g} mm"
+    tolerance += "" if measure == "none" else f" / {np.degrees(arm.rotation_tolerance):g}°"
+    return (f"**No sample reaches the targets** (every hand within {tolerance}): the best (sample {best + 1}) "
+            f"misses {misses}")  # fmt: skip
+
+
+def chain_model_text(arm, num_timesteps: int, metadata: dict, *, effectors=None, chains=None) -> str:
+    """A chain checkpoint's robot, schedule, denoiser and the accuracy measured when it was saved. `effectors`:
+    the end effectors' link names (None: the chain's one); `chains`: the chains whose URDF gives the meshes (None:
+    the arm itself)."""
     model, metrics = metadata.get("model", {}), metadata.get("metrics", {})
+    hands = arm.ee_link if effectors is None else " + ".join(effectors)
     lines = [
-        f"**Robot** {arm.base_link} → {arm.ee_link}, {arm.num_joints} joints, {arm.target} targets, "
-        f"**T** = {num_timesteps}",
+        f"**Robot** {arm.base_link} → {hands}, {arm.num_joints} joints, {arm.target} targets, **T** = {num_timesteps}",
         f"**denoiser** {model.get('denoiser', {}).get('kind', '?')}, representation {model.get('representation', '?')}",
     ]
     if metrics:
         lines.append(saved_metrics_text(metrics))
-    if arm.recorded_urdf_path is not None and arm.chain_description() is None:
+    missing = [chain for chain in ([arm] if chains is None else chains)
+               if chain.recorded_urdf_path is not None and chain.chain_description() is None]  # fmt: skip
+    if missing:
         # the shipped robots' meshes come from example-robot-data (the [robots] extra, 400 MB): say why none show;
         # by the file's name only, as the recorded path is the training machine's
-        name = Path(arm.recorded_urdf_path).name
+        name = Path(missing[0].recorded_urdf_path).name
         lines.append(f"**No meshes**: no {name} here (`pip install example-robot-data`); skeletons only")
     return "  \n".join(lines)
 

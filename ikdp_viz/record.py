@@ -84,7 +84,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
                   for state in range(view.num_states)]  # fmt: skip
         sigmas = solve_noise_levels(solver, view)
         offsets = state_offsets(sigmas, settings.clock, settings.seconds)
-        words = kind.target_words(solved.request.target)
+        words = kind.target_words(solved.request.target, solver.arm)
         arm_view.update(frames[0])
         label = server.scene.add_label("/recording/step", step_text(frames[0], words),
                                        position=label_position(arm_view), anchor="top-center")  # fmt: skip

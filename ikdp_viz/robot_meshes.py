@@ -55,18 +55,19 @@ def geometry_mesh(geometry) -> trimesh.Trimesh | None:
     return loaded
 
 
-def robot_meshes(arm, *, prefer: str = "collision") -> list[RobotMesh]:
+def robot_meshes(arm, *, prefer: str = "collision", chains=None) -> list[RobotMesh]:
     """Every drawable mesh of the arm's chain links; [] when the arm has no URDF at hand.
 
     `prefer`: "collision" (light) or "visual"; a link none of whose meshes of that kind can be read
-    here (the Panda's visual .dae files need pycollada) falls back to the other kind.
+    here (the Panda's visual .dae files need pycollada) falls back to the other kind. `chains`: the chains
+    whose URDF links are drawn (a tree's, each link once: `arm.link_names`); None: the arm itself.
     """
     if prefer not in ("collision", "visual"):
         raise ValueError(f"prefer: expected 'collision' or 'visual', got {prefer!r}")
-    description = arm.chain_description()
-    if description is None:
+    descriptions = [chain.chain_description() for chain in ([arm] if chains is None else chains)]
+    if any(description is None for description in descriptions):
         return []
-    links = {link.name: link for link in description.links}
+    links = {link.name: link for description in descriptions for link in description.links}
     other = "visual" if prefer == "collision" else "collision"
     meshes = []
     for link_index, name in enumerate(arm.link_names):

@@ -10,7 +10,9 @@ For K samples at one state it draws:
   show them;
 - the K skeletons (joint origins to the hand) as one line-segment node, and as the trail the
   path of each hand through the states before, as another;
-- the highlighted sample's hand frame, and the target as a 6-DoF gizmo that sets the pose.
+- the highlighted sample's hand frame, and the target as a 6-DoF gizmo that sets the pose; a robot of
+  several end effectors (a tree) has one hand frame and one labelled gizmo per end effector, its
+  skeletons one polyline per chain and its trail one path per hand.
 Every part of one frame is drawn from the same state: otherwise the skeletons could show the
 returned, refined pose at the end while the meshes did not, or the other way round.
 """
@@ -20,9 +22,10 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.camera import camera_fit_3d
 from ikdp_viz.chain_kind import VIOLATING_GHOST_OPACITY, ghost_opacities
-from ikdp_viz.chain_scene import gizmo_pose, mesh_poses, skeleton_segments
+from ikdp_viz.chain_scene import mesh_poses, skeleton_segments
 from ikdp_viz.frame import Frame
 from ikdp_viz.robot_meshes import light_mesh, robot_meshes
 from ikdp_viz.scene import estimate_rows, grid_segments, trail_rows, trail_until
@@ -46,7 +49,8 @@ class RobotView:
         self.server, self._gizmo_update = server, gizmo_update
         self.ghosts: list = []  # one batched mesh node per robot mesh, K instances
         self.robot: list = []  # the highlighted sample: one opaque mesh node per robot mesh
-        self.trail = self.skeletons = self.hand = self.estimate_lines = self.refined_lines = None
+        self.trail = self.skeletons = self.estimate_lines = self.refined_lines = None
+        self.hands: list = []  # the highlighted sample's hand frames, one per end effector
         self.prior_lines = None
         self.nodes_shape: tuple[int, int] | None = None
         self._refined_of = None
@@ -60,10 +64,12 @@ class RobotView:
         start_rebuild(self, solver, target)
         scene = self.server.scene
         arm = solver.arm
-        self.robot_meshes = robot_meshes(arm)
+        self.kind = kind = arm_kind(solver)
+        self.polylines = kind.polylines(arm)
+        self.robot_meshes = robot_meshes(arm, chains=kind.mesh_chains(arm))
         self.mesh_links = np.array([mesh.link_index for mesh in self.robot_meshes], dtype=np.int64)
         self.mesh_offsets = np.array([mesh.offset for mesh in self.robot_meshes]).reshape(-1, 4, 4)
-        self.center, self.reach = arm.reach_center.double().numpy(), float(arm.reach[1])
+        self.center, self.reach = kind.reach_center(arm), float(arm.reach[1])
         cell = grid_cell(self.reach)
         extent = 2 * cell * np.ceil(1.2 * self.reach / cell)
         scene.set_up_direction("+z")
@@ -74,14 +80,25 @@ class RobotView:
             "/grid", segments, colors=np.broadcast_to(grid_colors, segments.shape).copy(), thickness=1.0,
             thickness_units="screen", position=(self.center[0], self.center[1], 0.0),
         )  # fmt: skip
-        pose = self.target
-        wxyz = pose[3:7] if len(pose) == 7 else (1.0, 0.0, 0.0, 0.0)
-        self.gizmo = scene.add_transform_controls(
-            "/target", scale=0.25 * self.reach, depth_test=False, disable_rotations=len(pose) != 7,
-            position=tuple(pose[:3]), wxyz=tuple(wxyz),
-        )  # fmt: skip
-        self.gizmo.on_update(self._gizmo_update)
-        self._static_nodes = [grid, self.gizmo]
+        names, rows = kind.effector_names(arm), kind.pose_rows(arm, self.target)
+        self.gizmos, self._static_nodes = [], [grid]
+        for name, node_name, pose in zip(names, kind.gizmo_names(arm), rows, strict=True):
+            wxyz = pose[3:7] if len(pose) == 7 else (1.0, 0.0, 0.0, 0.0)
+            gizmo = scene.add_transform_controls(
+                node_name, scale=0.25 * self.reach / np.sqrt(len(names)), depth_test=False,
+                disable_rotations=len(pose) != 7, position=tuple(pose[:3]), wxyz=tuple(wxyz),
+            )  # fmt: skip
+            gizmo.on_update(self._gizmo_update)
+            self.gizmos.append(gizmo)
+            if len(names) > 1:  # which hand each gizmo sets, written beside it
+                self._static_nodes.append(scene.add_label(f"{node_name}/name", name, position=(0.0, 0.0, 0.02)))
+        self.gizmo = self.gizmos[0]  # the one gizmo of a chain (the Constraints folder's target kind sets its rings)
+        self._static_nodes += self.gizmos
+
+    @property
+    def hand(self):
+        """The first end effector's hand frame (a chain's one)."""
+        return self.hands[0] if self.hands else None
 
     def extent(self):
         """None: a 3-D view has no side views on its ground plane; it has a camera of its own (`camera`)."""
@@ -92,30 +109,34 @@ class RobotView:
 
     def place_target(self, target: np.ndarray, *, move_gizmo: bool, force: bool, camera_position=None) -> None:
         self.target = np.asarray(target, dtype=np.float64)
-        if move_gizmo:
-            position = np.asarray(target[:3], dtype=np.float64)
-            if len(target) == 7:
-                self.gizmo.wxyz = np.asarray(target[3:7], dtype=np.float64)
+        if not move_gizmo:
+            return
+        for gizmo, pose in zip(self.gizmos, self.kind.pose_rows(self.solver.arm, self.target), strict=True):
+            position = pose[:3]
+            if len(pose) == 7:
+                gizmo.wxyz = pose[3:7]
             if force:  # as the planar view: the page's gizmo may be past the clamped point
-                self.gizmo.position = position + (1e-3, 0.0, 0.0)
-            self.gizmo.position = position
+                gizmo.position = position + (1e-3, 0.0, 0.0)
+            gizmo.position = position
 
     def aim_cross(self, camera_position) -> None:
         """No cross: the gizmo is the target."""
 
     def hide_target_controls(self) -> None:
         """A recording: the gizmo's rings and arrows go, a frame marks the target pose instead."""
-        self.gizmo.visible = False
-        wxyz = self.target[3:7] if len(self.target) == 7 else (1.0, 0.0, 0.0, 0.0)
-        self._static_nodes.append(
-            self.server.scene.add_frame(
-                "/target_frame",
-                axes_length=0.1 * self.reach,
-                axes_radius=0.006 * self.reach,
-                position=tuple(float(value) for value in self.target[:3]),
-                wxyz=tuple(float(value) for value in wxyz),
-            )  # fmt: skip
-        )
+        rows = self.kind.pose_rows(self.solver.arm, self.target)
+        for number, (gizmo, pose) in enumerate(zip(self.gizmos, rows, strict=True)):
+            gizmo.visible = False
+            wxyz = pose[3:7] if len(pose) == 7 else (1.0, 0.0, 0.0, 0.0)
+            self._static_nodes.append(
+                self.server.scene.add_frame(
+                    "/target_frame" if number == 0 else f"/target_frame_{number}",
+                    axes_length=0.1 * self.reach,
+                    axes_radius=0.006 * self.reach,
+                    position=tuple(float(value) for value in pose[:3]),
+                    wxyz=tuple(float(value) for value in wxyz),
+                )  # fmt: skip
+            )
 
     # -------------------------------------------------------------- one frame
 
@@ -134,23 +155,24 @@ class RobotView:
         scales = np.ones(view.num_samples)
         scales[highlight] = 0.0  # drawn opaque by its own nodes
         colors = palette.ghosts[state]  # (K, 3)
-        hand_position, hand_wxyz = gizmo_pose(arm, poses[highlight])
+        hand_positions, hand_wxyzs = self.kind.hand_poses(arm, poses[highlight])  # (E, 3), (E, 4)
         trail_of = frame.settings.trail_of
         shown = frame.settings.show_trail and state > 0
         if shown:
-            rows = trail_rows(view.num_samples, 1, highlight, trail_of)
+            rows = trail_rows(view.num_samples, view.num_effectors, highlight, trail_of)
             trail_points, segment_colors = trail_until(
                 solved.trail_points[:, rows], palette.trail[:, rows], state, most_states=frame.trail_states
             )
             self.trail.points, self.trail.colors = trail_points, segment_colors
         self.trail.visible = shown
-        self.skeletons.points = skeleton_segments(points).astype(np.float32)
+        self.skeletons.points = skeleton_segments(points, view.polylines).astype(np.float32)
         self.skeletons.colors = palette.skeletons[state]
         self.skeletons.visible = True
         estimate = view.estimate_at(state) if frame.settings.show_estimate else None
         if estimate is not None:
-            self.estimate_lines.points = skeleton_segments(estimate[estimate_rows(view.num_samples, highlight,
-                                                                                   trail_of)])  # fmt: skip
+            self.estimate_lines.points = skeleton_segments(
+                estimate[estimate_rows(view.num_samples, highlight, trail_of)], view.polylines
+            )
         self.estimate_lines.visible = estimate is not None
         ghosts_shown = not frame.light  # the skeletons stand in while it plays
         for index, node in enumerate(self.ghosts):
@@ -165,17 +187,18 @@ class RobotView:
             node.position, node.wxyz = mesh_positions[highlight, index], mesh_wxyzs[highlight, index]
             node.color = tuple(int(channel) for channel in colors[highlight])
             node.visible = True
-        self.hand.position, self.hand.wxyz, self.hand.visible = hand_position, hand_wxyz, True
+        for hand, position, wxyz in zip(self.hands, hand_positions, hand_wxyzs, strict=True):
+            hand.position, hand.wxyz, hand.visible = position, wxyz, True
         self.refined_lines.visible = frame.final and view.refined
 
     def _write_refined(self, view) -> None:
-        self.refined_lines.points = skeleton_segments(view.final_points)
-        count = view.num_samples * view.num_joints
+        self.refined_lines.points = skeleton_segments(view.final_points, view.polylines)
+        count = view.num_samples * view.num_segments
         self.refined_lines.colors = np.broadcast_to(np.array(REFINED, np.uint8), (count, 2, 3))
 
     def show_prior(self, joints: np.ndarray) -> None:
         """Poses from the prior as brown skeletons; `joints` (K, J+1, 3) are their joint origins and hands."""
-        self.prior_lines = prior_lines(self.server, skeleton_segments(joints), self.prior_lines)
+        self.prior_lines = prior_lines(self.server, skeleton_segments(joints, self.polylines), self.prior_lines)
 
     def clear_prior(self) -> None:
         self.prior_lines = removed(self.prior_lines)
@@ -230,19 +253,25 @@ class RobotView:
             )  # fmt: skip
             for mesh in self.robot_meshes
         ]
-        self.hand = scene.add_frame(
-            "/samples/hand", axes_length=HAND_AXES * self.reach, axes_radius=0.06 * HAND_AXES * self.reach,
-            origin_radius=0.1 * HAND_AXES * self.reach, visible=False,
-        )  # fmt: skip
+        self.hands = [
+            scene.add_frame(
+                "/samples/hand" if number == 0 else f"/samples/hand_{number}",
+                axes_length=HAND_AXES * self.reach,
+                axes_radius=0.06 * HAND_AXES * self.reach,
+                origin_radius=0.1 * HAND_AXES * self.reach,
+                visible=False,
+            )  # fmt: skip
+            for number in range(len(self.gizmos))
+        ]
         self.nodes_shape = (num_samples, num_joints)
         self._refined_of = None
 
     def remove_samples(self) -> None:
         """Remove the nodes of the samples (not the floor, the target or the prior's draw)."""
-        for handle in (*self.ghosts, *self.robot):
+        for handle in (*self.ghosts, *self.robot, *self.hands):
             handle.remove()
-        self.ghosts, self.robot = [], []
-        for name in ("trail", "skeletons", "hand", "estimate_lines", "refined_lines"):
+        self.ghosts, self.robot, self.hands = [], [], []
+        for name in ("trail", "skeletons", "estimate_lines", "refined_lines"):
             handle = getattr(self, name, None)
             if handle is not None:
                 handle.remove()
