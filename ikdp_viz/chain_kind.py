@@ -363,6 +363,7 @@ class TreeKind(ChainKind):
     readout per hand. Reached: every hand within the arm's tolerances."""
 
     name = "tree"
+    chart_error = "worst hand's position error"  # view.tip_error: the worst hand's, as the tree arm's own errors
 
     def effector_names(self, arm) -> tuple[str, ...]:
         return tuple(arm.ee_links)

@@ -40,6 +40,13 @@ def target_from_numbers(values, *, kind: str, target_dim: int, current: np.ndarr
         if values.size != 2:
             raise ValueError(f"target: a planar arm's target is x y, got {values.size} numbers")
         return values
+    if values.size == target_dim:  # every number of the target: a chain's pose or position, a tree's every hand's
+        return values
+    if target_dim not in (3, 7):  # several end effectors (a tree): no shorthand names one hand of them
+        raise ValueError(
+            f"target: this model's target is {target_dim} numbers (every hand's position, then every hand's w x y z), "
+            f"got {values.size} numbers"
+        )
     if target_dim == 3:
         if values.size != 3:
             raise ValueError(f"target: this robot model's target is a position x y z (m), got {values.size} numbers")

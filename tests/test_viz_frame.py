@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from viz_helpers import hand_made_result
 
-from ikdp_viz.chain_kind import ChainKind
+from ikdp_viz.chain_kind import ChainKind, TreeKind
 from ikdp_viz.frame import Palettes, ViewSettings, build_frame
 from ikdp_viz.planar_kind import PlanarKind
 from ikdp_viz.scene import build_view, trail_points
@@ -77,7 +77,7 @@ def listed_layers(entries) -> set[str]:
     return {word for word in LAYERS if any(entry.text.startswith(word) for entry in entries)}
 
 
-@pytest.mark.parametrize("kind", [PlanarKind(), ChainKind()], ids=["planar", "chain"])
+@pytest.mark.parametrize("kind", [PlanarKind(), ChainKind(), TreeKind()], ids=["planar", "chain", "tree"])
 def test_the_legend_lists_x0_refined_and_the_prior_only_while_the_scene_draws_them(kind):
     """The viewer's legend listed x̂0 with "show x̂0" off, "refined" for a solve not refined and the prior's poses
     with none on screen: a screenshot's legend named layers its scene did not draw. A recording draws no prior."""
@@ -110,7 +110,7 @@ def test_the_legend_lists_x0_only_at_the_states_where_the_scene_draws_it():
         assert ("x̂0" in listed_layers(legend)) == drawn == (0 < state < last), state
 
 
-@pytest.mark.parametrize("kind", [PlanarKind(), ChainKind()], ids=["planar", "chain"])
+@pytest.mark.parametrize("kind", [PlanarKind(), ChainKind(), TreeKind()], ids=["planar", "chain", "tree"])
 @pytest.mark.parametrize("recording", [False, True])
 def test_the_legend_lists_the_trail_only_while_it_is_drawn(kind, recording):
     def trail_listed(show_trail: bool) -> bool:
