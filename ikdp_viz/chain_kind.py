@@ -140,6 +140,7 @@ class ChainKind:
 
     # -------------------------------------------------------------- texts every end effector shares
 
+    partial_target_note = None  # the Constraints folder's "target" dropdown offers a chain's partial targets
     hand_frame_text = "hand frame of the highlighted robot: x red, y green, z blue"
     skeleton_text = "skeletons: joint origins to the hand"
     gizmo_text = "target: the gizmo's pose (drag its arrows and rings)"
@@ -230,13 +231,13 @@ class ChainKind:
         return "  \n".join(lines)
 
     def target_words(self, target: np.ndarray, arm) -> str:
-        """The target in a recording's label (each hand's position)."""
-        rows = self.pose_rows(arm, target)
-        words = []
-        for row in rows:
-            x, y, z = 1000 * row[:3]
-            words.append(f"x = {x:+.0f}, y = {y:+.0f}, z = {z:+.0f} mm")
-        return ("target " if len(words) == 1 else "targets ") + "; ".join(words)
+        """The target in a recording's label and an export's title: each hand's position, in mm."""
+        rows = 1000 * self.pose_rows(arm, target)[:, :3]
+        if len(rows) == 1:
+            x, y, z = rows[0]
+            return f"target x = {x:+.0f}, y = {y:+.0f}, z = {z:+.0f} mm"
+        # several hands: (x, y, z) each, short enough for an export's title line
+        return "targets " + ", ".join("({:+.0f}, {:+.0f}, {:+.0f})".format(*row) for row in rows) + " mm"
 
     def typed_numbers(self, inputs, arm) -> tuple[float, ...]:
         """The numbers typed in the panel's Target folder: metres from the mm fields, then roll pitch yaw."""
@@ -406,6 +407,10 @@ class TreeKind(ChainKind):
         width = "x, y, z" if arm.per_effector_dim == 3 else "x, y, z of each hand, then w, qx, qy, qz of each hand"
         return f"{width}; hands {list(arm.ee_links)}"
 
+    partial_target_note = (  # the Constraints folder's line where a chain's "target" dropdown stands
+        "target: each hand's full pose (a tree's partial targets, `ikdp.PositionOnly(effectors=...)` per hand, are "
+        "the library's)"
+    )
     hand_frame_text = "hand frames of the highlighted robot, one per hand: x red, y green, z blue"
     skeleton_text = "skeletons: joint origins, base to each hand"
     gizmo_text = "targets: one gizmo per hand, labelled with its link (drag one: that hand's target alone moves)"

@@ -75,6 +75,9 @@ class ConstraintControls:
                     hint="What the hand must reach: the whole pose, its position only, or the pose up to a turn "
                     "about one of the hand's axes",
                 )  # fmt: skip
+            note = arm_kind(solver).partial_target_note  # why there is no "target" dropdown, where that needs saying
+            if note is not None:
+                gui.add_markdown(note)
             self.lock_boxes, self.lock_values = [], []
             for field in self.fields:
                 box = gui.add_checkbox(f"lock {field.name}", False)

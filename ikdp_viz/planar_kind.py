@@ -61,6 +61,7 @@ class PlanarKind:
     opens_with_trail = True  # the paper's figure: the trail from noise to the pose
     chart_error, chart_unit, chart_scale = "tip error", "bone lengths", 1.0  # the chart's y: view.tip_error * scale
     holds_text = "constraints hold at the step shown (the others lighter)"
+    partial_target_note = None  # a point target: nothing to leave free, nothing to say
 
     @staticmethod
     def sample_path(view, sample: int) -> tuple[np.ndarray, tuple[int, ...]]:

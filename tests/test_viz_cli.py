@@ -59,14 +59,14 @@ def test_an_unknown_device_is_one_line_and_exit_status_2(tiny_checkpoint):
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
 
 
-def test_a_model_of_several_hands_is_refused_in_one_line_naming_them():
-    # the shipped G1 model: a tree of two hands, which the views (one gizmo, one hand's readouts) cannot draw
-    result = run_cli("--ckpt", "ikdp_g1", "--port", "0")
+def test_a_tree_target_of_too_few_numbers_is_one_line_naming_how_many_it_takes():
+    # the shipped G1 model: two hands, a target of 14 numbers (every hand's position, then every hand's w x y z)
+    result = run_cli("--ckpt", "ikdp_g1", "--port", "0", "--target", "0.3", "0.2", "0.1")
     assert result.returncode == 2 and "Traceback" not in result.stderr and "open http" not in result.stdout
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("ikdp-viz: error: --ckpt ikdp_g1: ")
-    assert "'left_rubber_hand', 'right_rubber_hand'" in lines[0] and "(B, 2, 7)" in lines[0]
+    assert lines[0].startswith("ikdp-viz: error: --target 0.3 0.2 0.1: ")
+    assert "14 numbers" in lines[0] and "got 3 numbers" in lines[0]
 
 
 def test_help_lists_every_option_once_with_its_one_default():
