@@ -156,6 +156,11 @@ class ChainKind:
         target as asked was moved)."""
         if not clamped:
             return np.zeros(len(self.effector_names(arm)), bool)
+        return self.on_reach_ball(arm, target)
+
+    def on_reach_ball(self, arm, target) -> np.ndarray:
+        """(E,) bool: the end effectors whose target position lies on (or past) their reach ball's surface, where
+        `clamp` puts a position asked for beyond it."""
         distance = np.linalg.norm(self.pose_rows(arm, target)[:, :3] - self.reach_centers(arm), axis=-1)
         return distance >= self.reach_radii(arm) * (1 - 1e-6)
 
@@ -419,6 +424,11 @@ class TreeKind(ChainKind):
 
     def gizmo_names(self, arm) -> tuple[str, ...]:
         return tuple(f"/targets/{name}" for name in arm.ee_links)
+
+    def beyond_reach(self, arm, target, clamped: bool) -> np.ndarray:
+        """Each hand on its reach ball, whichever move put it there: `clamped` says only whether the last move
+        pulled some hand in, and a drag of the other hand keeps this one's target where it was pulled."""
+        return self.on_reach_ball(arm, target)
 
     def typed_numbers(self, inputs, arm) -> tuple[float, ...]:
         """None typed: the fields take one hand's pose, and a tree's hands are set by their gizmos."""

@@ -108,6 +108,9 @@ def test_a_hand_out_of_reach_is_named(app):
     assert "out of reach: left_rubber_hand" in app.panel.target_text.content
     miss = [line for line in app.panel.readout_text.content.splitlines() if line.startswith("**Out of reach**")]
     assert miss and "left_rubber_hand" in miss[0].split(";")[0] and "right_rubber_hand" not in miss[0].split(";")[0]
+    drag(app, 1, rows[1, :3] + (0.0, 0.0, 0.03))  # the other hand's drag keeps the left one's target out of reach
+    assert "out of reach: left_rubber_hand" in app.panel.target_text.content
+    assert "**Out of reach**: the target of left_rubber_hand" in app.panel.readout_text.content
 
 
 def tree_view(position_errors, rotation_errors) -> ChainView:
