@@ -47,9 +47,10 @@ FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach
 class ConstraintControls:
     """The Constraints folder and its scene nodes for one model; `rebuild` for another."""
 
-    def __init__(self, server: viser.ViserServer, solver, on_loop, on_change):
+    def __init__(self, server: viser.ViserServer, solver, on_loop, on_change, on_loop_thread):
         self.server = server
         self.on_loop = on_loop  # the scene writer's run(function, wait=): on the drawing loop's thread
+        self.on_loop_thread = on_loop_thread  # True on the drawing loop's own thread
         self.on_change = on_change  # ask for a new solve
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
@@ -113,7 +114,11 @@ class ConstraintControls:
         if self.target_kind is not None:
             self.target_kind.on_update(lambda event: self._loop(event, self._on_target_kind))
 
-    def _loop(self, event, handler) -> None:  # handler(writer) on the loop; a value set from Python waits for it
+    def _loop(self, event, handler) -> None:
+        """handler(writer) on the drawing loop; a value set from Python waits for it. A control the loop itself
+        wrote asks nothing (the loop does what follows from it)."""
+        if self.on_loop_thread():
+            return
         self.on_loop(handler, wait=event.client is None)
 
     def _on_color_states(self, writer) -> None:
@@ -127,7 +132,7 @@ class ConstraintControls:
 
     def rebuild(self, solver, writer) -> None:
         """Drawing loop's thread: another model, a fresh folder for its joints, no obstacles, no last pose."""
-        self.clear_obstacles(ask=False)
+        self._clear(writer, ask=False)
         self._remove_overlay()
         self._draw_target_marks(writer, "full pose")
         self.folder.remove()
@@ -229,16 +234,17 @@ class ConstraintControls:
         self.on_loop(move, wait=False)
 
     def clear_obstacles(self, ask: bool = True) -> None:
-        def clear(writer) -> None:
-            removed, self.obstacles = self.obstacles, []
-            for entry in removed:
-                for node in entry["nodes"]:
-                    node.remove()
-            self._said(writer)
-            if ask:
-                self.on_change()
+        """Remove every obstacle (any thread but the drawing loop's: it runs there and waits)."""
+        self.on_loop(lambda writer: self._clear(writer, ask), wait=True)
 
-        self.on_loop(clear, wait=True)
+    def _clear(self, writer, ask: bool) -> None:
+        removed, self.obstacles = self.obstacles, []
+        for entry in removed:
+            for node in entry["nodes"]:
+                node.remove()
+        self._said(writer)
+        if ask:
+            self.on_change()
 
     # ------------------------------------------------------------------ after a solve
 

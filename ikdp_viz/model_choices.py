@@ -12,7 +12,6 @@ import numpy as np
 
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind
-from ikdp_viz.messages import NewModel
 from ikdp_viz.session import initial_target
 from ikdp_viz.student import STUDENT, checkpoint_header, model_and_student
 
@@ -108,11 +107,12 @@ def adopt_model(app, writer, solver, student=None, on_student: bool = False) -> 
             writer.panel.sampler.value = STUDENT
         app.constraint_controls.rebuild(solver, writer)
         app.session.target = initial_target(solver, previous)
-        writer.post(NewModel(solver, app.session.target))
+        writer.ask(model=(solver, app.session.target))  # the scene rebuilt at the loop's next pass
         writer.panel.model_text.content = arm_kind(solver).model_text(solver)
         writer.panel.checkpoint.value = app._current_checkpoint_label()
-        writer.panel.steps.max = solver.timesteps  # here too, before NewModel is applied: show_steps reads it
-        app.sampling.show_steps()  # the new model's T, when its sampler takes all steps
+        writer.panel.steps.max = solver.timesteps  # here too, before the scene is rebuilt: show_steps reads it
+        app.sampling.show_steps()
+        app.sampling.show_switch()  # the new model's T, when its sampler takes all steps
         # the old target asked again: pulled into the new workspace, the panel says "clamped" if it was moved
         same_kind_of_target = np.shape(previous) == np.shape(app.session.target)
         app.move_target(previous if same_kind_of_target else app.session.target)

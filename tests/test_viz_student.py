@@ -13,7 +13,6 @@ import torch
 from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
-from ikdp_viz.messages import ShowSolve
 from ikdp_viz.student import (
     STUDENT,
     TEACHER,
@@ -131,7 +130,7 @@ def test_a_drag_with_the_teacher_previews_the_student(app):
         (True, "teacher's ddpm"),
         (False, None),
     ]
-    app.writer.post(ShowSolve(shown[0], newest=True))
+    app.writer.ask(solved=(shown[0], True))
     app.writer.flush()
     expected = f"**Fast preview** (student's ddim, {STUDENT_STEPS} steps) while the teacher's ddpm solve runs"
     assert expected in app.panel.readout_text.content
