@@ -6,7 +6,7 @@ and draws it as the paper's Fig. "vis":
 every intermediate pose a thin line from faint (pure noise, t = T) to dark
 (t = 0), the current pose solid; then it plays the denoising from t = T to 0.
 
-This file wires four parts: the session (model, target: `session.py`), the solve
+This file wires four parts: the session (model, target: `solving.py`), the solve
 worker (`solve_worker.py`, `solving.py`: it only hands results back), the drawing
 loop (`scene_writer.py`, the one thread that writes the scene, cameras and panel
 outputs, from one `Frame` per picture: `frame.py`) and the panel (`panel.py`).
@@ -35,16 +35,14 @@ from ikdp_viz.camera import camera_fit, fit_fields_of_view
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.downloads import Downloads
 from ikdp_viz.intent import StateAsked, TargetMove
-from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
-from ikdp_viz.noise_it import forward_solved, is_forward
+from ikdp_viz.models import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel
-from ikdp_viz.same_noise import RerunReadout
 from ikdp_viz.sampling_controls import SamplingControls
 from ikdp_viz.scene_writer import SceneWriter
-from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
-from ikdp_viz.solving import Solved, solve
+from ikdp_viz.solving import Session, Solved, solve
 from ikdp_viz.student import model_and_student
+from ikdp_viz.teaching import RerunReadout, forward_solved, is_forward
 from ikdp_viz.tour import TourRunner
 from ikdp_viz.typed_target import target_from_numbers
 
@@ -196,7 +194,7 @@ class VizApp:
         return self.worker.submit(self._job(request), self._solved, self._failed)
 
     def again(self) -> int | None:
-        """Solve the solve on screen again from its very x_T with new step noise (same_noise.py); the worker's ticket,
+        """Solve the solve on screen again from its very x_T with new step noise (teaching.py); the worker's ticket,
         or None when nothing is on screen to rerun."""
         solved = self.writer.solved
         if solved is None or is_forward(solved) or solved.preview_of is not None:
@@ -207,7 +205,7 @@ class VizApp:
         return self.worker.submit(self._job(request), self._solved, self._failed)
 
     def noise_it(self, play: bool = True):
-        """Show the forward process of the final poses on screen (noise_it.py) and play it from t = 0 toward T;
+        """Show the forward process of the final poses on screen (teaching.py) and play it from t = 0 toward T;
         returns its Solved, or None when there is nothing to noise (no solve, a robot's)."""
         solved = self.writer.solved
         if solved is None or is_forward(solved) or solved.request.solver.arm.kind != "planar":
@@ -371,7 +369,7 @@ class VizApp:
 
     @property
     def checkpoints(self) -> dict[str, Path]:
-        """The model dropdown's label -> path (model_choices.py)."""
+        """The model dropdown's label -> path (models.py)."""
         return self.models.paths
 
     @checkpoints.setter
@@ -393,5 +391,5 @@ class VizApp:
             self.load_checkpoint(self.checkpoints[label])
 
     def load_checkpoint(self, path: Path) -> bool:
-        """Switch to another model: reload, redraw the scene for its arm, solve again (model_choices.py)."""
+        """Switch to another model: reload, redraw the scene for its arm, solve again (models.py)."""
         return switch_model(self, path)

@@ -14,7 +14,7 @@ from ikdp_viz import chain_scene, readouts
 from ikdp_viz.chain_scene import ghost_colors
 from ikdp_viz.constraint_scene import holds, sample_tints
 from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, shown_layers
-from ikdp_viz.scene import emphasis_colors, follows_one, trail_colors
+from ikdp_viz.planar_scene import emphasis_colors, follows_one, trail_colors
 from ikdp_viz.style import (
     ACCENT_DARK,
     ACCENT_FAINT,

@@ -36,7 +36,7 @@ from ikdp_viz.constraint_scene import (
     overlay_segments,
     readout_text,
 )
-from ikdp_viz.scene import line_colors
+from ikdp_viz.planar_scene import line_colors
 from ikdp_viz.style import FREE_AXIS_COLOR, OBSTACLE
 from ikdp_viz.typed_target import lock_fields
 

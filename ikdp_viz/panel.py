@@ -15,17 +15,17 @@ import viser.uplot
 
 from ikdp_viz.frame import CLOCK_CHOICES
 from ikdp_viz.joint_space import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.scene import TRAIL_CHOICES
-from ikdp_viz.schedule_plot import schedule_curves
+from ikdp_viz.planar_scene import TRAIL_CHOICES
+from ikdp_viz.readouts import define
 from ikdp_viz.style import CHART_HIGHLIGHTED, CHART_MEDIAN, CHART_NOW
-from ikdp_viz.teach_panel import (
+from ikdp_viz.teaching import (
     TeachControls,
     build_rerun_controls,
     build_schedule_folder,
     build_tour_controls,
     build_words_folder,
+    schedule_curves,
 )
-from ikdp_viz.words import define
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -101,7 +101,7 @@ class Panel:
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
     learn: LearnControls  # what makes the denoising readable (panel.py)
-    teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teach_panel.py)
+    teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teaching.py)
 
 
 def build_panel(
@@ -244,7 +244,7 @@ class LearnControls:
     legend: viser.GuiHtmlHandle  # what each colour means (style.py; written by the scene writer)
     share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
     target: TargetInputs  # the target typed in the panel
-    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare.py)
+    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare_view.py)
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:

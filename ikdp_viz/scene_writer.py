@@ -34,11 +34,11 @@ from ikdp_viz.frame import (
     state_offsets,
 )
 from ikdp_viz.intent import Animation, Asked, Intent, StateAsked, TargetMove
-from ikdp_viz.joint_space_nodes import Stage
+from ikdp_viz.joint_space_view import Stage
 from ikdp_viz.panel import Panel, plot_axes, plot_scales
-from ikdp_viz.scene import nearest_state
-from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data
+from ikdp_viz.planar_scene import nearest_state
 from ikdp_viz.style import COMPARE_STROKE, Entry, legend_html
+from ikdp_viz.teaching import schedule_curves, schedule_plot_data
 
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 NOISE_HOLD = 0.6  # seconds pure noise (t = T) shows before a played denoising moves (the noisy steps pass fast)

@@ -17,7 +17,7 @@ from viz_helpers import drag_gizmo, running_app, settle
 import ikdp
 from ikdp.train import TrainConfig, train
 from ikdp_viz.app import list_checkpoints
-from ikdp_viz.scene import HIGHLIGHT_LIFT
+from ikdp_viz.planar_scene import HIGHLIGHT_LIFT
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.solving import SolveRequest, solve
 
@@ -155,7 +155,7 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
     brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
     assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
     # the others' final poses light lines, the highlighted one dark blue with its joints; the others' joints not drawn
-    from ikdp_viz.scene import line_colors
+    from ikdp_viz.planar_scene import line_colors
     from ikdp_viz.style import ACCENT_DARK, OTHERS_FINAL
 
     link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]

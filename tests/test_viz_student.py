@@ -181,7 +181,7 @@ def test_picking_a_students_file_shows_the_student_with_its_teacher(app, models,
 
 def test_a_folders_checkpoints_are_read_once_for_the_dropdown_and_the_student(models, monkeypatch):
     import ikdp_viz.student as headers
-    from ikdp_viz.model_choices import ModelChoices, list_checkpoints
+    from ikdp_viz.models import ModelChoices, list_checkpoints
 
     teacher_path, _, folder = models
     teacher = ikdp.load(teacher_path)

@@ -19,8 +19,8 @@ import ikdp
 from ikdp_viz.arm_kinds import arm_view_class, compare_view_class
 from ikdp_viz.camera import Extent, camera_over, fit_fields_of_view, move_cameras
 from ikdp_viz.joint_space import FieldCache, JointSpaceControls, two_link_solutions, wrap_to_square
+from ikdp_viz.readouts import branch_name, held_text, joint_space_title
 from ikdp_viz.style import ARROW, BACKING, FRAME_STRONG, FRAME_WEAK, JOINT_SPACE_DOT, SOLUTION
-from ikdp_viz.words import branch_name, held_text, joint_space_title
 
 FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red, which means the exact solutions
 # Heights above the square, in units of the reach, so that the top-down view draws samples over
