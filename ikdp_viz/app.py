@@ -44,7 +44,6 @@ from ikdp_viz.solving import Session, Solved, solve
 from ikdp_viz.student import model_and_student
 from ikdp_viz.teaching import RerunReadout, forward_solved, is_forward
 from ikdp_viz.tour import TourRunner
-from ikdp_viz.typed_target import target_from_numbers
 
 PAGE_DRAW_TIMEOUT = 20.0  # seconds a new tab gets to draw its first frame before the denoising plays anyway
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
@@ -208,7 +207,7 @@ class VizApp:
         """Show the forward process of the final poses on screen (teaching.py) and play it from t = 0 toward T;
         returns its Solved, or None when there is nothing to noise (no solve, a robot's)."""
         solved = self.writer.solved
-        if solved is None or is_forward(solved) or solved.request.solver.arm.kind != "planar":
+        if solved is None or is_forward(solved) or not arm_kind(solved.request.solver).teaches:
             return None
         forward = forward_solved(solved, seed=solved.request.seed)
         self.writer.ask(solved=(forward, True))  # drawn at its last state: t = 0, the poses themselves
@@ -349,12 +348,10 @@ class VizApp:
 
     def move_typed_target(self) -> int | None:
         """Solve the target typed in the panel's Target folder (pulled into the workspace as a drag would be)."""
-        arm, kind = self.solver.arm, arm_kind(self.solver)
-        values = kind.typed_numbers(self.panel.learn.target, arm)
+        kind = arm_kind(self.solver)
+        values = kind.typed_numbers(self.panel.learn.target, self.solver.arm)
         try:
-            point = target_from_numbers(
-                values, kind=kind.name, target_dim=getattr(arm, "target_dim", 2), current=self.target
-            )
+            point = kind.target_from_numbers(values, self.solver, self.target)
         except ValueError as error:
             text = f"**Not a target** {error}"  # written by the drawing loop, like every panel output
             self.writer.run(lambda writer: setattr(writer.panel.target_text, "content", text))

@@ -78,6 +78,29 @@ class ChainKind:
 
     chart_error, chart_unit, chart_scale = "hand position error", "mm", 1000.0  # view.tip_error is in metres
     holds_text = "constraints hold at the step shown"
+    flat = False
+    pose_targets = True  # the Constraints folder offers a partial target: the position only, a turn left free
+    teaches = False  # the tour and "noise it" are the planar arm's
+    previews_drags = True  # a fast solve drawn first while a drag goes on (solving.preview_request)
+    draws_joint_space = False
+
+    @staticmethod
+    def target_from_numbers(values, solver, current) -> np.ndarray:
+        """The typed numbers as a target, not yet pulled into reach (typed_target.py)."""
+        from ikdp_viz.typed_target import pose_from_numbers  # here: the kinds import no viser
+
+        return pose_from_numbers(values, target_dim=solver.arm.target_dim, current=current)
+
+    @staticmethod
+    def lock_fields(arm) -> list:
+        from ikdp_viz.typed_target import joint_lock_fields
+
+        return joint_lock_fields(arm)
+
+    @staticmethod
+    def obstacle_radius(arm) -> float:
+        return 0.08  # metres: a ball about a hand's size
+
     violates_text = "constraints fail at the step shown (those see-through robots denser)"
 
     def configure_panel(self, panel) -> None:
@@ -136,7 +159,7 @@ class ChainKind:
         """The typed-target fields show the target solved: position in mm, rotation as roll pitch yaw in degrees."""
         from ikdp_viz.typed_target import roll_pitch_yaw_degrees  # here: it imports viser's SO3 helper
 
-        inputs.show_for("chain", len(target))
+        inputs.show_fields(point=False, rotation=len(target) == 7)
         inputs.position_mm.value = tuple(round(1000 * float(value), 1) for value in target[:3])
         if len(target) == 7:
             inputs.rotation_deg.value = tuple(round(float(value), 1) for value in roll_pitch_yaw_degrees(target[3:7]))

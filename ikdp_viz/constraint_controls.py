@@ -38,7 +38,6 @@ from ikdp_viz.constraint_scene import (
 )
 from ikdp_viz.planar_scene import line_colors
 from ikdp_viz.style import FREE_AXIS_COLOR, OBSTACLE
-from ikdp_viz.typed_target import lock_fields
 
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
 FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
@@ -64,13 +63,13 @@ class ConstraintControls:
     def build(self, solver) -> None:
         self.solver = solver
         arm = solver.arm
-        planar = arm.kind == "planar"
+        kind = arm_kind(solver)
         gui = self.server.gui
-        self.fields = lock_fields(arm)
+        self.fields = arm_kind(solver).lock_fields(arm)
         self.folder = gui.add_folder("Constraints", expand_by_default=False)
         with self.folder:
             self.target_kind = None  # a planar arm's target is a point: nothing to leave free
-            if getattr(arm, "target_dim", 2) == 7:
+            if kind.pose_targets and arm.target_dim == 7:
                 self.target_kind = gui.add_dropdown(
                     "target", tuple(TARGET_KINDS), initial_value="full pose",
                     hint="What the hand must reach: the whole pose, its position only, or the pose up to a turn "
@@ -89,9 +88,7 @@ class ConstraintControls:
                 self.lock_boxes.append(box)
                 self.lock_values.append(value)
             span = arm.span
-            self.radius = gui.add_number(
-                "obstacle radius", round(0.1 * span if planar else 0.08, 3), min=0.01, max=span, step=0.01
-            )
+            self.radius = gui.add_number("obstacle radius", kind.obstacle_radius(arm), min=0.01, max=span, step=0.01)
             self.add_button = gui.add_button("Add obstacle", hint="A sphere (a disc) no link may touch; drag it")
             self.clear_button = gui.add_button("Clear obstacles")
             self.stay_near = gui.add_checkbox("stay near the last pose", False, hint="Pull every solve toward it")
@@ -163,7 +160,7 @@ class ConstraintControls:
         obstacles = [(entry["position"], entry["radius"]) for entry in tuple(self.obstacles)]  # the loop may add one
         near = self.last_pose if (self.stay_near.value and not self.follow.value) else None  # follow: track's own
         kind = "full pose" if self.target_kind is None else str(self.target_kind.value)
-        return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar", target_kind=kind)
+        return build_constraints(locks, obstacles, near, planar=arm_kind(self.solver).flat, target_kind=kind)
 
     def follow_from(self) -> np.ndarray | None:
         """The pose follow mode's next step goes from (any thread: it only reads); None while not following."""
@@ -212,7 +209,7 @@ class ConstraintControls:
             position = obstacle_drop(self.solver.arm, self.last_pose, radius)
         entry = {"position": np.asarray(position, dtype=np.float64), "radius": radius, "nodes": []}
         index = len(self.obstacles)
-        entry["nodes"] = obstacle_nodes(self.server, index, entry, planar=self.solver.arm.kind == "planar",
+        entry["nodes"] = obstacle_nodes(self.server, index, entry, planar=arm_kind(self.solver).flat,
                                         moved=self.move_obstacle)  # fmt: skip
         self.obstacles = [*self.obstacles, entry]  # a new list: a solve request may be copying the old one
         self.on_change()

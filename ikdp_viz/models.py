@@ -72,13 +72,8 @@ def load_solver(program: str, path: Path, device: str = "cpu"):
 def command_target(solver, numbers):
     """The target `--target NUMBERS` asks for; ValueError when the numbers do not make one for this arm."""
     from ikdp_viz.solving import initial_target
-    from ikdp_viz.typed_target import target_from_numbers
 
-    arm = solver.arm
-    return target_from_numbers(
-        numbers, kind=getattr(arm, "kind", "planar"), target_dim=getattr(arm, "target_dim", 2),
-        current=initial_target(solver),
-    )  # fmt: skip
+    return arm_kind(solver).target_from_numbers(numbers, solver, initial_target(solver))
 
 
 def target_flag_error(numbers, error: ValueError) -> str:

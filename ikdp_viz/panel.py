@@ -229,11 +229,11 @@ class TargetInputs:
     rotation_deg: viser.GuiVector3Handle  # and its rotation, roll pitch yaw in degrees (pose models)
     go: viser.GuiButtonHandle  # solve the typed target
 
-    def show_for(self, kind: str, target_dim: int) -> None:
-        """Offer the fields of an arm of `kind` ("planar" or "chain"); rotation only for pose targets."""
-        self.xy.visible = kind == "planar"
-        self.position_mm.visible = kind != "planar"
-        self.rotation_deg.visible = kind != "planar" and target_dim == 7
+    def show_fields(self, *, point: bool, rotation: bool) -> None:
+        """Offer a planar point's x, y (`point`), else a hand's position, with its rotation for pose targets."""
+        self.xy.visible = point
+        self.position_mm.visible = not point
+        self.rotation_deg.visible = not point and rotation
 
 
 @dataclass

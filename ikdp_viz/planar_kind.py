@@ -61,6 +61,28 @@ class PlanarKind:
     opens_with_trail = True  # the paper's figure: the trail from noise to the pose
     chart_error, chart_unit, chart_scale = "tip error", "bone lengths", 1.0  # the chart's y: view.tip_error * scale
     holds_text = "constraints hold at the step shown (the others lighter)"
+    flat = True  # drawn in its plane: obstacles are discs, their gizmos move in the plane
+    pose_targets = False  # a target is a point: nothing of it to leave free
+    teaches = True  # the tour and "noise it" are written about this arm
+    previews_drags = False  # a planar solve is fast enough to draw at every drag event
+    draws_joint_space = True  # the joint-space square: two headings of this arm
+
+    @staticmethod
+    def target_from_numbers(values, solver, current) -> np.ndarray:
+        """The typed numbers as a target, not yet pulled into the workspace (typed_target.py)."""
+        from ikdp_viz.typed_target import point_from_numbers  # here: the kinds import no viser
+
+        return point_from_numbers(values)
+
+    @staticmethod
+    def lock_fields(arm) -> list:
+        from ikdp_viz.typed_target import heading_lock_fields
+
+        return heading_lock_fields(arm)
+
+    @staticmethod
+    def obstacle_radius(arm) -> float:
+        return round(0.1 * arm.span, 3)
 
     @staticmethod
     def sample_path(view, sample: int) -> np.ndarray:
@@ -111,7 +133,7 @@ class PlanarKind:
 
     def write_typed_fields(self, inputs, target: np.ndarray) -> None:
         """The typed-target fields show the target solved (so a small change is one edit away)."""
-        inputs.show_for("planar", 2)
+        inputs.show_fields(point=True, rotation=False)
         inputs.xy.value = tuple(round(float(value), 3) for value in target[:2])
 
     def flat_picture(self, solved) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:

@@ -137,7 +137,7 @@ def preview_request(request: SolveRequest) -> SolveRequest | None:
     solver, (sampler, steps) = request.solver, PREVIEW_SAMPLER
     if request.student is not None:
         solver, (sampler, steps) = request.student, student_sampling(request.student)
-    if request.animate or request.solver.arm.kind == "planar" or request.solver is request.student:
+    if request.animate or not arm_kind(request.solver).previews_drags or request.solver is request.student:
         return None
     same_model_and_sampler = solver is request.solver and request.sampler == sampler
     if same_model_and_sampler or (request.steps or request.solver.timesteps) <= steps:

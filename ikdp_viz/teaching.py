@@ -49,8 +49,8 @@ def forward_solved(solved: Solved, seed: int) -> Solved:
     """
     request = solved.request
     solver = request.solver
-    if solver.arm.kind != "planar":
-        raise ValueError(f"solved: expected a planar arm's solve to noise, got a {solver.arm.kind!r} arm")
+    if not arm_kind(solver).teaches:
+        raise ValueError(f"solved: expected a planar arm's solve to noise, got a {arm_kind(solver).name} arm's")
     if solved.final_angles is None:
         raise ValueError("solved: expected a solve with its returned poses (final_angles), got None")
     model = solver.model

@@ -14,6 +14,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
+from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.intent import StateAsked
 
 TWO_LINK_MODEL = "ikdp_n2"  # the model whose target has exactly two answers, elbow up and elbow down
@@ -129,7 +130,7 @@ class TourRunner:
     @property
     def offered(self) -> bool:
         """The tour is about the planar arm; a robot's viewer hides it."""
-        return self.app.solver.arm.kind == "planar"
+        return arm_kind(self.app.solver).teaches
 
     def start(self) -> None:
         """Open the tour at its first step, remembering the model and target to come back to."""
