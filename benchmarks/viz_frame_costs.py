@@ -60,7 +60,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     from playwright.sync_api import sync_playwright
 
     import ikdp
-    from ikdp_viz import messages, planar_kind, scene_writer
+    from ikdp_viz import planar_kind, scene_writer
     from ikdp_viz.app import VizApp
     from ikdp_viz.screenshot import COUNT_FRAMES, open_viewer_page
 
@@ -114,7 +114,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
         step = 0
         while not stop.is_set():
             step += 1
-            writer.post(messages.Call(lambda _, state=40 + step % 41: write(state)))
+            writer.run(lambda _, state=40 + step % 41: write(state), wait=False)
             time.sleep(0.05)
 
     results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}
@@ -139,7 +139,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
                 # a new order each round: a variant always following the same one inherits its after-effects
                 # (the first frames after "nothing drawn" shows every node again are slow)
                 for variant in order.sample(VARIANTS, len(VARIANTS)):
-                    writer.post(messages.Call(lambda _, variant=variant: switch(variant)))
+                    writer.run(lambda _, variant=variant: switch(variant), wait=False)
                     writer.flush()
                     page.evaluate(COUNT_FRAMES, 1.0)  # let the switch reach the page, uncounted
                     frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)

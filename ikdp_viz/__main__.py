@@ -23,8 +23,8 @@ import time
 from dataclasses import dataclass
 
 from ikdp.shipped import DEFAULT_MODEL, shipped_dir
-from ikdp_viz import command_line
-from ikdp_viz.command_line import check_viewer_packages, checkpoint_path, command_target, target_flag_error
+from ikdp_viz import models
+from ikdp_viz.models import check_viewer_packages, checkpoint_path, command_target, target_flag_error
 
 PROGRAM = "ikdp-viz"
 SIGNAL_CHECK_SECONDS = 0.2  # how late Ctrl-C may be noticed at most
@@ -102,7 +102,7 @@ def config_target(solver, config: VizConfig):
 
 
 def fail(message: str) -> None:
-    command_line.fail(PROGRAM, message)
+    models.fail(PROGRAM, message)
 
 
 def check_address(host: str, port: int) -> None:
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> None:
     server = app = None
     try:
         path = checkpoint_path(config.ckpt)
-        solver = command_line.load_solver(PROGRAM, path, config.device)
+        solver = models.load_solver(PROGRAM, path, config.device)
         from ikdp_viz.arm_kinds import arm_kind
 
         try:

@@ -6,13 +6,14 @@ and draws it as the paper's Fig. "vis":
 every intermediate pose a thin line from faint (pure noise, t = T) to dark
 (t = 0), the current pose solid; then it plays the denoising from t = T to 0.
 
-This file wires four parts: the session (model, target: `session.py`), the solve
+This file wires four parts: the session (model, target: `solving.py`), the solve
 worker (`solve_worker.py`, `solving.py`: it only hands results back), the drawing
 loop (`scene_writer.py`, the one thread that writes the scene, cameras and panel
 outputs, from one `Frame` per picture: `frame.py`) and the panel (`panel.py`).
-Callbacks only change the session and send messages; they never write the scene or the panel: a handler that
-changes a control (the highlight's options, the steps slider, a lock field enabled) runs on the drawing loop
-(`writer.run`), so the loop is the one writer of every panel output.
+Callbacks only set fields of one intent (intent.py: the newest target, a solve wanted, a state, a control that
+changed); the drawing loop takes it, submits the solve (the newest wins), adopts finished solves and draws each
+picture. A control whose handler writes other controls (K and the highlight's options, the sampler and its steps)
+is named in the intent, and its handler runs on the loop, the one writer of every panel output.
 What differs per kind of arm is an arm kind (`planar_kind.py`, `chain_kind.py`) and
 an arm view (`planar_view.py`, `robot_view.py`), picked in `arm_kinds.py` alone.
 """
@@ -33,30 +34,16 @@ from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.camera import camera_fit, fit_fields_of_view
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.downloads import Downloads
-from ikdp_viz.messages import (
-    Call,
-    PlaceTarget,
-    Redraw,
-    ReplayWhenDrawn,
-    ShowError,
-    ShowPrior,
-    ShowSolve,
-    ShowState,
-    TabOpened,
-    TogglePlay,
-)
-from ikdp_viz.model_choices import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
-from ikdp_viz.noise_it import forward_solved, is_forward
+from ikdp_viz.intent import StateAsked, TargetMove
+from ikdp_viz.models import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel
-from ikdp_viz.same_noise import RerunReadout
 from ikdp_viz.sampling_controls import SamplingControls
 from ikdp_viz.scene_writer import SceneWriter
-from ikdp_viz.session import Session
 from ikdp_viz.solve_worker import LatestWorker
-from ikdp_viz.solving import Solved, solve
+from ikdp_viz.solving import Session, Solved, solve
 from ikdp_viz.student import model_and_student
+from ikdp_viz.teaching import RerunReadout, forward_solved, is_forward
 from ikdp_viz.tour import TourRunner
-from ikdp_viz.typed_target import target_from_numbers
 
 PAGE_DRAW_TIMEOUT = 20.0  # seconds a new tab gets to draw its first frame before the denoising plays anyway
 STALE_GRACE = 0.1  # seconds without a new solve on screen after which no running solve is cancelled
@@ -108,8 +95,12 @@ class VizApp:
         )  # fmt: skip
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
+        self.writer.submit_solve = self._submit
+        self.writer.on_changed = self._on_changed
         self.sampling = SamplingControls(self.panel, lambda: self.request_solve(), self.session)
-        self.constraint_controls = ConstraintControls(server, solver, self.writer.run, self.request_solve)
+        self.constraint_controls = ConstraintControls(
+            server, solver, self.writer.run, self.request_solve, self.writer.on_loop_thread
+        )
         self.reruns = RerunReadout()  # again from the same x_T: how far each run's poses moved from the one before
         self.writer.after_solve = self._after_solve
         self.downloads = Downloads(self.writer, self.panel)
@@ -117,7 +108,7 @@ class VizApp:
         self.sampling.offer_student()
         self.sampling.show_steps()
         server.on_client_connect(self._on_connect)
-        self.writer.post(PlaceTarget(self.session.target, False, move_gizmo=False, force=False))
+        self.writer.ask(target=TargetMove(self.session.target, False, move_gizmo=False, force=False))
         self.tour = TourRunner(self)
         if solve_now:
             self.move_target(self.session.target)
@@ -154,7 +145,7 @@ class VizApp:
             client.get_render(height=8, width=8, timeout=PAGE_DRAW_TIMEOUT)
         except (TimeoutError, RuntimeError):  # a page that never draws (or closed): play anyway, as before
             pass
-        self.writer.post(TabOpened(client))  # the loop plays a solve no one saw, and hides viser's WebGL toast
+        self.writer.ask(tabs=[client])  # the loop plays a solve no one saw, and hides viser's WebGL toast
         shape = [None]  # the canvas size last seen: a resized window gets its field of view on the drawing loop
 
         def resized(camera) -> None:
@@ -169,8 +160,8 @@ class VizApp:
 
     def move_target(
         self, point, *, arrival: float | None = None, from_gizmo: bool = False, dragging: bool = False
-    ) -> int | None:
-        """Clamp `point` to the workspace, move the cross there and ask for its solve; returns the ticket.
+    ) -> None:
+        """Clamp `point` to the workspace, move the cross there and ask for its solve.
 
         While `dragging`, each solve is drawn at once at its final pose (its trail from t = T
         to 0 included), so the arm follows the cross; the denoising plays when the drag ends.
@@ -180,27 +171,30 @@ class VizApp:
             target, clamped, changed = self.session.move(point, from_gizmo=from_gizmo)
             released = from_gizmo and not dragging
             move_gizmo = clamped or not from_gizmo
-            self.writer.post(PlaceTarget(target, clamped, move_gizmo=move_gizmo, force=released and move_gizmo))
+            move = TargetMove(target, clamped, move_gizmo=move_gizmo, force=released and move_gizmo)
             if not changed and from_gizmo:
-                if released:
-                    self.writer.post(ReplayWhenDrawn(target))
-                return None
-            return self.request_solve(arrival, animate=not dragging)
+                self.writer.ask(target=move, **({"replay": target} if released else {}))
+                return
+            self.writer.ask(target=move, solve=(arrival, not dragging))
 
-    def request_solve(self, arrival: float | None = None, *, animate: bool = True) -> int:
-        """Solve the current target with the panel's settings, replacing any solve not yet started."""
+    def request_solve(self, arrival: float | None = None, *, animate: bool = True) -> None:
+        """Ask for a solve of the current target with the panel's settings (the loop submits it; the newest wins)."""
+        self.writer.ask(solve=(time.perf_counter() if arrival is None else arrival, animate))
+
+    def _submit(self, arrival: float, animate: bool) -> int:
+        """Drawing loop: the solve of the newest target with the panel's settings now, replacing any not started."""
         with self.session.lock:
             constraints = self.constraint_controls.constraints()
             request = self.session.request(self.panel, arrival=arrival, animate=animate, constraints=constraints,
                                            chosen_steps=self.sampling.chosen_steps,
                                            follow_from=self.constraint_controls.follow_from())  # fmt: skip
-            if self.panel.new_seed.value:  # the new seed shown, so a good draw can be kept: by the loop
-                self.writer.run(lambda writer: setattr(writer.panel.seed, "value", request.seed), wait=False)
-            return self.worker.submit(self._job(request), self._solved, self._failed)
+        if self.panel.new_seed.value:  # the new seed shown, so a good draw can be kept
+            self.panel.seed.value = request.seed
+        return self.worker.submit(self._job(request), self._solved, self._failed)
 
     def again(self) -> int | None:
-        """Solve the solve on screen again from its very x_T with new step noise (same_noise.py); the ticket, or None
-        when nothing is on screen to rerun."""
+        """Solve the solve on screen again from its very x_T with new step noise (teaching.py); the worker's ticket,
+        or None when nothing is on screen to rerun."""
         solved = self.writer.solved
         if solved is None or is_forward(solved) or solved.preview_of is not None:
             return None
@@ -210,13 +204,13 @@ class VizApp:
         return self.worker.submit(self._job(request), self._solved, self._failed)
 
     def noise_it(self, play: bool = True):
-        """Show the forward process of the final poses on screen (noise_it.py) and play it from t = 0 toward T;
+        """Show the forward process of the final poses on screen (teaching.py) and play it from t = 0 toward T;
         returns its Solved, or None when there is nothing to noise (no solve, a robot's)."""
         solved = self.writer.solved
-        if solved is None or is_forward(solved) or solved.request.solver.arm.kind != "planar":
+        if solved is None or is_forward(solved) or not arm_kind(solved.request.solver).teaches:
             return None
         forward = forward_solved(solved, seed=solved.request.seed)
-        self.writer.post(ShowSolve(forward, newest=True))  # drawn at its last state: t = 0, the poses themselves
+        self.writer.ask(solved=(forward, True))  # drawn at its last state: t = 0, the poses themselves
         self.writer.flush()
         if play:
             self.forward_player = threading.Thread(target=self._play_forward, args=(forward,), daemon=True)
@@ -225,7 +219,7 @@ class VizApp:
 
     def _play_forward(self, forward) -> None:
         """Step the forward process from t = 0 to T over the animation's duration; a newer solve on screen stops it.
-        Each step is a ShowState message: the drawing loop stays the one writer."""
+        Each step is a state asked of the drawing loop, the one writer."""
         last = forward.view.num_states - 1
         seconds = float(self.panel.duration.value) or 4.0
         started = time.monotonic()
@@ -233,7 +227,7 @@ class VizApp:
             time.sleep(max(0.0, started + seconds * (last - state) / last - time.monotonic()))
             if self.writer.solved is not forward:
                 return
-            self.writer.post(ShowState(state=state))
+            self.writer.ask(state=StateAsked(state=state))
 
     def _after_solve(self, solved) -> None:
         """The drawing loop's thread, before the frame that shows `solved`: follow mode picks the highlighted
@@ -246,15 +240,15 @@ class VizApp:
         result like any other (solving.preview_request)."""
         if not self.previews:
             return lambda cancel: solve(request, cancel)
-        show = lambda cancel: lambda solved: self.writer.post(ShowSolve(solved, newest=not cancel.is_set()))  # noqa
+        show = lambda cancel: lambda solved: self.writer.ask(solved=(solved, not cancel.is_set()))  # noqa
         return lambda cancel: solve(request, cancel, show(cancel))
 
     def _solved(self, ticket: int, solved: Solved) -> None:
         """Worker thread: hand the finished solve to the drawing loop, nothing else."""
-        self.writer.post(ShowSolve(solved, newest=self.worker.is_newest(ticket)))
+        self.writer.ask(solved=(solved, self.worker.is_newest(ticket)))
 
     def _failed(self, ticket: int, error: BaseException) -> None:
-        self.writer.post(ShowError(f"{type(error).__name__}: {error}"))
+        self.writer.ask(error=f"{type(error).__name__}: {error}")
 
     async def on_gizmo_update(self, event: viser.TransformControlsEvent) -> None:
         """Gizmo callback. Async so viser runs it on its event loop in arrival order; it only queues work."""
@@ -265,21 +259,26 @@ class VizApp:
 
     def show_state(self, state: int) -> None:
         """Put state `state` (0 = pure noise .. S = final) on screen, and wait until it is written."""
-        self.writer.post(ShowState(state=state))
+        self.writer.ask(state=StateAsked(state=state))
         self.writer.flush()
 
     def toggle_play(self) -> None:
         """Pause a running animation, or play from the current step (from t = T when at the end)."""
-        self.writer.post(TogglePlay())
+        self.writer.ask(toggle_play=True)
         self.writer.flush()
 
     def wait_until_still(self, timeout: float = 30.0) -> bool:
         """Block until no solve is waiting or running and nothing is left to draw (for tests and scripts)."""
+        return self.wait_until_drawn(timeout, playing=False)
+
+    def wait_until_drawn(self, timeout: float = 30.0, *, playing: bool = True) -> bool:
+        """Block until no solve is asked, waiting or running and the newest is on screen; `playing`: its animation
+        may still be playing."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if self.worker.wait_idle(max(0.0, deadline - time.monotonic())):
                 self.writer.flush(max(0.0, deadline - time.monotonic()))
-                if self.worker.idle and self.writer.still:
+                if self.worker.idle and self.writer.asked.idle and (playing or self.writer.still):
                     return True
             time.sleep(0.005)
         return False
@@ -292,41 +291,43 @@ class VizApp:
 
     def _wire_panel(self) -> None:
         panel = self.panel
-        panel.timestep.on_update(lambda event: self._post(event, ShowState(timestep=float(panel.timestep.value))))
-        panel.previous_button.on_click(lambda event: self._post(event, ShowState(delta=-1)))
-        panel.next_button.on_click(lambda event: self._post(event, ShowState(delta=+1)))
-        panel.play_button.on_click(lambda event: self._post(event, TogglePlay()))
+        panel.timestep.on_update(lambda event: self._ask(event, state=StateAsked(timestep=float(panel.timestep.value))))
+        panel.previous_button.on_click(lambda event: self._ask(event, state=StateAsked(delta=-1)))
+        panel.next_button.on_click(lambda event: self._ask(event, state=StateAsked(delta=+1)))
+        panel.play_button.on_click(lambda event: self._ask(event, toggle_play=True))
         joint_space = panel.joint_space
         for toggle in (panel.show_trail, panel.show_estimate, panel.highlight, joint_space.show, joint_space.first,
                        joint_space.second, joint_space.grid, panel.learn.trail_of,
                        panel.learn.clock, panel.duration):  # fmt: skip
-            toggle.on_update(lambda event: self._post(event, Redraw()))
+            toggle.on_update(lambda event: self._ask(event, redraw=True))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.export_button.on_click(self.downloads.on_export)
         panel.learn.share.on_click(self.downloads.on_share)
         panel.learn.target.go.on_click(lambda _: self.move_typed_target())
-        panel.learn.compare.on_update(lambda _: self.request_solve())
-        panel.samples.on_update(self._on_loop(self.sampling.on_samples))
-        panel.sampler.on_update(self._on_loop(self.sampling.on_sampler))
-        panel.teacher_student.on_click(self._on_loop(self.sampling.on_switch))
-        panel.steps.on_update(self._on_loop(self.sampling.on_steps))
-        panel.refine_steps.on_update(lambda _: self.request_solve())
+        for name, control in (("samples", panel.samples), ("sampler", panel.sampler), ("steps", panel.steps),
+                              ("refine", panel.refine)):  # fmt: skip
+            control.on_update(lambda event, name=name: self._ask(event, changed=[name]))
+        panel.teacher_student.on_click(lambda event: self._ask(event, changed=["switch"]))
+        for control in (panel.learn.compare, panel.refine_steps):
+            control.on_update(lambda event: self._ask(event, solve=(time.perf_counter(), True)))
         panel.seed.on_update(lambda event: None if event.client is None else self.request_solve())
-        panel.refine.on_update(self._on_loop(self.sampling.on_refine))
         panel.checkpoint.on_update(lambda _: self._on_checkpoint())
         panel.teach.again.on_click(lambda _: self.again())
         panel.teach.noise_it.on_click(lambda _: self.noise_it())
 
-    def _on_loop(self, handler):
-        """A callback that runs `handler()` on the drawing loop (it writes controls); a value set from Python waits
-        until it has run."""
-        return lambda event: self.writer.run(lambda _: handler(), wait=event.client is None)
+    def _on_changed(self, name: str) -> None:
+        """Drawing loop: the handler of a control that writes other controls (sampling_controls.py)."""
+        sampling = self.sampling
+        handler = {"samples": sampling.on_samples, "sampler": sampling.on_sampler, "steps": sampling.on_steps,
+                   "refine": sampling.on_refine, "switch": sampling.on_switch}[name]  # fmt: skip
+        handler()
 
-    def _post(self, event: viser.GuiEvent, message) -> None:
-        """Send `message` to the writer; a value set from Python (a script, a test) waits until it is drawn."""
+    def _ask(self, event: viser.GuiEvent, **fields) -> None:
+        """A callback's whole work: set fields of the intent. A control the drawing loop itself wrote is its own
+        doing and asks nothing; a value set from Python (a script, a test) waits until it is drawn."""
         if self.writer.on_loop_thread():
-            return  # the drawing loop itself moved a control while drawing
-        self.writer.post(message)
+            return
+        self.writer.ask(**fields)
         if event.client is None:
             self.writer.flush()
 
@@ -336,7 +337,7 @@ class VizApp:
             solver = self.session.solver
             headings = solver.prior.sample(int(self.panel.samples.value), solver.arm)  # (K, N)
             joints = solver.arm.forward_kinematics(headings.double()).numpy()  # (K, N+1, 2 or 3)
-            self.writer.post(ShowPrior(joints))
+            self.writer.ask(prior=joints)
         if wait:
             self.writer.flush()
         return joints
@@ -347,16 +348,13 @@ class VizApp:
 
     def move_typed_target(self) -> int | None:
         """Solve the target typed in the panel's Target folder (pulled into the workspace as a drag would be)."""
-        arm, kind = self.solver.arm, arm_kind(self.solver)
-        values = kind.typed_numbers(self.panel.learn.target, arm)
+        kind = arm_kind(self.solver)
+        values = kind.typed_numbers(self.panel.learn.target, self.solver.arm)
         try:
-            point = target_from_numbers(
-                values, kind=kind.name, target_dim=getattr(arm, "target_dim", 2), current=self.target
-            )
+            point = kind.target_from_numbers(values, self.solver, self.target)
         except ValueError as error:
             text = f"**Not a target** {error}"  # written by the drawing loop, like every panel output
-            self.writer.post(Call(lambda writer: setattr(writer.panel.target_text, "content", text)))
-            self.writer.flush()
+            self.writer.run(lambda writer: setattr(writer.panel.target_text, "content", text))
             return None
         return self.move_target(point)
 
@@ -368,7 +366,7 @@ class VizApp:
 
     @property
     def checkpoints(self) -> dict[str, Path]:
-        """The model dropdown's label -> path (model_choices.py)."""
+        """The model dropdown's label -> path (models.py)."""
         return self.models.paths
 
     @checkpoints.setter
@@ -390,5 +388,5 @@ class VizApp:
             self.load_checkpoint(self.checkpoints[label])
 
     def load_checkpoint(self, path: Path) -> bool:
-        """Switch to another model: reload, redraw the scene for its arm, solve again (model_choices.py)."""
+        """Switch to another model: reload, redraw the scene for its arm, solve again (models.py)."""
         return switch_model(self, path)

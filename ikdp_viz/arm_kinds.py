@@ -57,9 +57,9 @@ def compare_view_class(solver):
     """The class of the side view that shows a second sampler from the same noise: a second planar workspace, or
     a robot's skeletons beside it."""
     if arm_kind(solver).name == "planar":
-        from ikdp_viz.compare import CompareNodes
+        from ikdp_viz.compare_view import CompareNodes
 
         return CompareNodes
-    from ikdp_viz.compare import RobotCompareNodes
+    from ikdp_viz.compare_view import RobotCompareNodes
 
     return RobotCompareNodes

@@ -18,7 +18,7 @@ from ikdp_viz import chain_scene, readouts
 from ikdp_viz.chain_scene import ghost_colors, pose_target
 from ikdp_viz.constraint_scene import holds, sample_tints
 from ikdp_viz.planar_kind import PLAYING_FOLLOWED_STATES, PLAYING_TRAIL_STATES, shown_layers
-from ikdp_viz.scene import emphasis_colors, follows_one, trail_colors
+from ikdp_viz.planar_scene import emphasis_colors, follows_one, trail_colors
 from ikdp_viz.style import (
     ACCENT_DARK,
     ACCENT_FAINT,
@@ -86,6 +86,29 @@ class ChainKind:
 
     chart_error, chart_unit, chart_scale = "hand position error", "mm", 1000.0  # view.tip_error is in metres
     holds_text = "constraints hold at the step shown"
+    flat = False
+    pose_targets = True  # the Constraints folder offers a partial target: the position only, a turn left free
+    teaches = False  # the tour and "noise it" are the planar arm's
+    previews_drags = True  # a fast solve drawn first while a drag goes on (solving.preview_request)
+    draws_joint_space = False
+
+    @staticmethod
+    def target_from_numbers(values, solver, current) -> np.ndarray:
+        """The typed numbers as a target, not yet pulled into reach (typed_target.py)."""
+        from ikdp_viz.typed_target import pose_from_numbers  # here: the kinds import no viser
+
+        return pose_from_numbers(values, target_dim=solver.arm.target_dim, current=current)
+
+    @staticmethod
+    def lock_fields(arm) -> list:
+        from ikdp_viz.typed_target import joint_lock_fields
+
+        return joint_lock_fields(arm)
+
+    @staticmethod
+    def obstacle_radius(arm) -> float:
+        return 0.08  # metres: a ball about a hand's size
+
     violates_text = "constraints fail at the step shown (those see-through robots denser)"
 
     # -------------------------------------------------------------- the end effectors of the arm
@@ -253,7 +276,7 @@ class ChainKind:
         """The typed-target fields show the target solved: position in mm, rotation as roll pitch yaw in degrees."""
         from ikdp_viz.typed_target import roll_pitch_yaw_degrees  # here: it imports viser's SO3 helper
 
-        inputs.show_for("chain", len(target))
+        inputs.show_fields(point=False, rotation=len(target) == 7)
         inputs.go.visible = True
         inputs.position_mm.value = tuple(round(1000 * float(value), 1) for value in target[:3])
         if len(target) == 7:
@@ -429,6 +452,22 @@ class TreeKind(ChainKind):
         """Each hand on its reach ball, whichever move put it there: `clamped` says only whether the last move
         pulled some hand in, and a drag of the other hand keeps this one's target where it was pulled."""
         return self.on_reach_ball(arm, target)
+
+    pose_targets = False  # a tree's partial target is per hand (`partial_target_note`), not the folder's dropdown
+
+    @staticmethod
+    def target_from_numbers(values, solver, current) -> np.ndarray:
+        """Every number of the target (the command line's `--target`): each hand's position, then each hand's
+        w x y z; no shorthand names one hand of them."""
+        from ikdp_viz.typed_target import finite_numbers  # here: the kinds import no viser
+
+        values, size = finite_numbers(values), solver.arm.target_dim
+        if values.size != size:
+            raise ValueError(
+                f"target: this model's target is {size} numbers (every hand's position, then every hand's w x y z), "
+                f"got {values.size} numbers"
+            )
+        return values
 
     def typed_numbers(self, inputs, arm) -> tuple[float, ...]:
         """None typed: the fields take one hand's pose, and a tree's hands are set by their gizmos."""

@@ -1,6 +1,6 @@
 """Drawable arrays for a spatial chain (a robot from a URDF): ghost skeletons, their colours, mesh and gizmo poses.
 
-The 3-D counterpart of `scene.py`, with the same rule: no viser here, only numpy
+The 3-D counterpart of `planar_scene.py`, with the same rule: no viser here, only numpy
 (and the arm's own kinematics), so everything the chain viewer draws is built and
 tested without a server. Positions are metres in the robot's base frame; rotations
 are unit quaternions (w, x, y, z), the convention of the arm's pose targets.
@@ -15,7 +15,7 @@ import torch
 
 from ikdp.rotations import matrix_to_quaternion
 from ikdp.solver import SolveResult
-from ikdp_viz.scene import fade_colors, state_labels
+from ikdp_viz.planar_scene import fade_colors, state_labels
 from ikdp_viz.style import ACCENT_DARK, ACCENT_FAINT, GHOST_DARK, GHOST_FAINT
 
 METRES_PER_RADIAN = 0.1  # ranks returned poses: a degree of rotation error counts as 1.7 mm of position

@@ -36,9 +36,8 @@ from ikdp_viz.constraint_scene import (
     overlay_segments,
     readout_text,
 )
-from ikdp_viz.scene import line_colors
+from ikdp_viz.planar_scene import line_colors
 from ikdp_viz.style import FREE_AXIS_COLOR, OBSTACLE
-from ikdp_viz.typed_target import lock_fields
 
 FREE_AXIS_LENGTH = 0.35  # the free axis drawn through the target, either way, in reach radii
 FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach radii: outside the gizmo's arrows
@@ -47,9 +46,10 @@ FREE_AXIS_RING = 0.12  # the ring about it (the turn left free), radius in reach
 class ConstraintControls:
     """The Constraints folder and its scene nodes for one model; `rebuild` for another."""
 
-    def __init__(self, server: viser.ViserServer, solver, on_loop, on_change):
+    def __init__(self, server: viser.ViserServer, solver, on_loop, on_change, on_loop_thread):
         self.server = server
         self.on_loop = on_loop  # the scene writer's run(function, wait=): on the drawing loop's thread
+        self.on_loop_thread = on_loop_thread  # True on the drawing loop's own thread
         self.on_change = on_change  # ask for a new solve
         self.obstacles: list[dict] = []  # {"position": (3,), "radius": float, "nodes": [...]}
         self.last_pose: np.ndarray | None = None  # the pose kept from the last solve
@@ -63,19 +63,19 @@ class ConstraintControls:
     def build(self, solver) -> None:
         self.solver = solver
         arm = solver.arm
-        planar = arm.kind == "planar"
+        kind = arm_kind(solver)
         gui = self.server.gui
-        self.fields = lock_fields(arm)
+        self.fields = arm_kind(solver).lock_fields(arm)
         self.folder = gui.add_folder("Constraints", expand_by_default=False)
         with self.folder:
             self.target_kind = None  # a planar arm's target is a point: nothing to leave free
-            if getattr(arm, "target_dim", 2) == 7:
+            if kind.pose_targets and arm.target_dim == 7:
                 self.target_kind = gui.add_dropdown(
                     "target", tuple(TARGET_KINDS), initial_value="full pose",
                     hint="What the hand must reach: the whole pose, its position only, or the pose up to a turn "
                     "about one of the hand's axes",
                 )  # fmt: skip
-            note = arm_kind(solver).partial_target_note  # why there is no "target" dropdown, where that needs saying
+            note = kind.partial_target_note  # why there is no "target" dropdown, where that needs saying
             if note is not None:
                 gui.add_markdown(note)
             self.lock_boxes, self.lock_values = [], []
@@ -91,9 +91,7 @@ class ConstraintControls:
                 self.lock_boxes.append(box)
                 self.lock_values.append(value)
             span = arm.span
-            self.radius = gui.add_number(
-                "obstacle radius", round(0.1 * span if planar else 0.08, 3), min=0.01, max=span, step=0.01
-            )
+            self.radius = gui.add_number("obstacle radius", kind.obstacle_radius(arm), min=0.01, max=span, step=0.01)
             self.add_button = gui.add_button("Add obstacle", hint="A sphere (a disc) no link may touch; drag it")
             self.clear_button = gui.add_button("Clear obstacles")
             self.stay_near = gui.add_checkbox("stay near the last pose", False, hint="Pull every solve toward it")
@@ -116,7 +114,11 @@ class ConstraintControls:
         if self.target_kind is not None:
             self.target_kind.on_update(lambda event: self._loop(event, self._on_target_kind))
 
-    def _loop(self, event, handler) -> None:  # handler(writer) on the loop; a value set from Python waits for it
+    def _loop(self, event, handler) -> None:
+        """handler(writer) on the drawing loop; a value set from Python waits for it. A control the loop itself
+        wrote asks nothing (the loop does what follows from it)."""
+        if self.on_loop_thread():
+            return
         self.on_loop(handler, wait=event.client is None)
 
     def _on_color_states(self, writer) -> None:
@@ -130,7 +132,7 @@ class ConstraintControls:
 
     def rebuild(self, solver, writer) -> None:
         """Drawing loop's thread: another model, a fresh folder for its joints, no obstacles, no last pose."""
-        self.clear_obstacles(ask=False)
+        self._clear(writer, ask=False)
         self._remove_overlay()
         self._draw_target_marks(writer, "full pose")
         self.folder.remove()
@@ -161,7 +163,7 @@ class ConstraintControls:
         obstacles = [(entry["position"], entry["radius"]) for entry in tuple(self.obstacles)]  # the loop may add one
         near = self.last_pose if (self.stay_near.value and not self.follow.value) else None  # follow: track's own
         kind = "full pose" if self.target_kind is None else str(self.target_kind.value)
-        return build_constraints(locks, obstacles, near, planar=self.solver.arm.kind == "planar", target_kind=kind)
+        return build_constraints(locks, obstacles, near, planar=arm_kind(self.solver).flat, target_kind=kind)
 
     def follow_from(self) -> np.ndarray | None:
         """The pose follow mode's next step goes from (any thread: it only reads); None while not following."""
@@ -210,7 +212,7 @@ class ConstraintControls:
             position = obstacle_drop(self.solver.arm, self.last_pose, radius, arm_kind(self.solver))
         entry = {"position": np.asarray(position, dtype=np.float64), "radius": radius, "nodes": []}
         index = len(self.obstacles)
-        entry["nodes"] = obstacle_nodes(self.server, index, entry, planar=self.solver.arm.kind == "planar",
+        entry["nodes"] = obstacle_nodes(self.server, index, entry, planar=arm_kind(self.solver).flat,
                                         moved=self.move_obstacle)  # fmt: skip
         self.obstacles = [*self.obstacles, entry]  # a new list: a solve request may be copying the old one
         self.on_change()
@@ -232,16 +234,17 @@ class ConstraintControls:
         self.on_loop(move, wait=False)
 
     def clear_obstacles(self, ask: bool = True) -> None:
-        def clear(writer) -> None:
-            removed, self.obstacles = self.obstacles, []
-            for entry in removed:
-                for node in entry["nodes"]:
-                    node.remove()
-            self._said(writer)
-            if ask:
-                self.on_change()
+        """Remove every obstacle (any thread but the drawing loop's: it runs there and waits)."""
+        self.on_loop(lambda writer: self._clear(writer, ask), wait=True)
 
-        self.on_loop(clear, wait=True)
+    def _clear(self, writer, ask: bool) -> None:
+        removed, self.obstacles = self.obstacles, []
+        for entry in removed:
+            for node in entry["nodes"]:
+                node.remove()
+        self._said(writer)
+        if ask:
+            self.on_change()
 
     # ------------------------------------------------------------------ after a solve
 

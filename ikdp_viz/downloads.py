@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import viser
 
+from ikdp_viz.planar_scene import emphasis_colors, follows_one
 from ikdp_viz.record import file_name
-from ikdp_viz.scene import emphasis_colors, follows_one
 from ikdp_viz.style import REACH_RING_HEX, TARGET_RED_HEX
 
 

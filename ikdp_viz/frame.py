@@ -16,7 +16,7 @@ import numpy as np
 
 from ikdp_viz import readouts
 from ikdp_viz.constraint_scene import holds, met_text, unmet_reasons
-from ikdp_viz.scene import TRAIL_CHOICES, compare_curve, error_curves
+from ikdp_viz.planar_scene import TRAIL_CHOICES, compare_curve, error_curves
 from ikdp_viz.style import Entry
 
 # The animation's clock: how long each state of the denoising stays on screen.
@@ -173,7 +173,7 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
     the readouts (the t asked for and the step shown instead)."""
     view = solved.view
     state = int(np.clip(state, 0, view.num_states - 1))
-    forward = getattr(solved, "forward", False)  # noise_it.py's forward process (a test's stand-in may lack it)
+    forward = getattr(solved, "forward", False)  # the forward process of teaching.py (a test's stand-in may lack it)
     if forward:  # a trail up to the step shown would run ahead of the noising, to t = T
         settings = dataclasses.replace(settings, show_trail=False)
     highlight = highlighted_sample(settings.highlight, solved)

@@ -22,7 +22,7 @@ import viser
 
 import ikdp
 from ikdp.arm import PlanarArm
-from ikdp_viz.words import JOINT_SPACE_HINT
+from ikdp_viz.readouts import JOINT_SPACE_HINT
 
 BOUNDARY_TOLERANCE = 1e-9  # |cos q2| within this of 1: the target is on the reach boundary, one solution
 CURVE_POINTS = 256  # samples of a solution curve

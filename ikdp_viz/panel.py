@@ -15,17 +15,17 @@ import viser.uplot
 
 from ikdp_viz.frame import CLOCK_CHOICES
 from ikdp_viz.joint_space import JointSpaceControls, build_joint_space_controls
-from ikdp_viz.scene import TRAIL_CHOICES
-from ikdp_viz.schedule_plot import schedule_curves
+from ikdp_viz.planar_scene import TRAIL_CHOICES
+from ikdp_viz.readouts import define
 from ikdp_viz.style import CHART_HIGHLIGHTED, CHART_MEDIAN, CHART_NOW
-from ikdp_viz.teach_panel import (
+from ikdp_viz.teaching import (
     TeachControls,
     build_rerun_controls,
     build_schedule_folder,
     build_tour_controls,
     build_words_folder,
+    schedule_curves,
 )
-from ikdp_viz.words import define
 
 MAX_SAMPLES = 64
 DEFAULT_SAMPLES = 16
@@ -101,7 +101,7 @@ class Panel:
     model_text: viser.GuiMarkdownHandle
     joint_space: JointSpaceControls
     learn: LearnControls  # what makes the denoising readable (panel.py)
-    teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teach_panel.py)
+    teach: TeachControls  # the tour, noise it, again from the same x_T, the schedule, the words (teaching.py)
 
 
 def build_panel(
@@ -229,11 +229,11 @@ class TargetInputs:
     rotation_deg: viser.GuiVector3Handle  # and its rotation, roll pitch yaw in degrees (pose models)
     go: viser.GuiButtonHandle  # solve the typed target
 
-    def show_for(self, kind: str, target_dim: int) -> None:
-        """Offer the fields of an arm of `kind` ("planar" or "chain"); rotation only for pose targets."""
-        self.xy.visible = kind == "planar"
-        self.position_mm.visible = kind != "planar"
-        self.rotation_deg.visible = kind != "planar" and target_dim == 7
+    def show_fields(self, *, point: bool, rotation: bool) -> None:
+        """Offer a planar point's x, y (`point`), else a hand's position, with its rotation for pose targets."""
+        self.xy.visible = point
+        self.position_mm.visible = not point
+        self.rotation_deg.visible = not point and rotation
 
 
 @dataclass
@@ -244,7 +244,7 @@ class LearnControls:
     legend: viser.GuiHtmlHandle  # what each colour means (style.py; written by the scene writer)
     share: viser.GuiButtonHandle  # one self-contained HTML file of the solve on screen (record.py)
     target: TargetInputs  # the target typed in the panel
-    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare.py)
+    compare: viser.GuiDropdownHandle  # "off" or a second sampler run from the same x_T, drawn beside (compare_view.py)
 
 
 def build_trail_of(gui: viser.GuiApi) -> viser.GuiDropdownHandle:

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ikdp_viz import readouts, scene
+from ikdp_viz import planar_scene, readouts
 from ikdp_viz.constraint_scene import sample_tints
-from ikdp_viz.scene import emphasis_colors, fade_colors, follows_one
+from ikdp_viz.planar_scene import emphasis_colors, fade_colors, follows_one
+from ikdp_viz.readouts import model_words
 from ikdp_viz.student import student_sampling
 from ikdp_viz.style import (
     ACCENT_DARK,
@@ -36,7 +37,6 @@ from ikdp_viz.style import (
     Entry,
     Swatch,
 )
-from ikdp_viz.words import model_words
 
 PLAYING_TRAIL_STATES = 6  # the trail while an animation plays: every s-th state; all once it stops
 PLAYING_FOLLOWED_STATES = 12  # the same for the one sample followed (the default picture)
@@ -62,6 +62,28 @@ class PlanarKind:
     chart_error, chart_unit, chart_scale = "tip error", "bone lengths", 1.0  # the chart's y: view.tip_error * scale
     holds_text = "constraints hold at the step shown (the others lighter)"
     partial_target_note = None  # a point target: nothing to leave free, nothing to say
+    flat = True  # drawn in its plane: obstacles are discs, their gizmos move in the plane
+    pose_targets = False  # a target is a point: nothing of it to leave free
+    teaches = True  # the tour and "noise it" are written about this arm
+    previews_drags = False  # a planar solve is fast enough to draw at every drag event
+    draws_joint_space = True  # the joint-space square: two headings of this arm
+
+    @staticmethod
+    def target_from_numbers(values, solver, current) -> np.ndarray:
+        """The typed numbers as a target, not yet pulled into the workspace (typed_target.py)."""
+        from ikdp_viz.typed_target import point_from_numbers  # here: the kinds import no viser
+
+        return point_from_numbers(values)
+
+    @staticmethod
+    def lock_fields(arm) -> list:
+        from ikdp_viz.typed_target import heading_lock_fields
+
+        return heading_lock_fields(arm)
+
+    @staticmethod
+    def obstacle_radius(arm) -> float:
+        return round(0.1 * arm.span, 3)
 
     @staticmethod
     def sample_path(view, sample: int) -> tuple[np.ndarray, tuple[int, ...]]:
@@ -80,20 +102,20 @@ class PlanarKind:
         """(2,) `target` clamped into the solver's workspace; a point up and to the right when None."""
         inner, outer = solver.reach
         point = np.array(target if target is not None else (0.55 * outer, 0.3 * outer), dtype=np.float64)
-        return scene.clamp_to_workspace(point, inner, outer)[0]
+        return planar_scene.clamp_to_workspace(point, inner, outer)[0]
 
     def clamp(self, solver, point) -> tuple[np.ndarray, bool]:
         """The nearest workspace point to `point` (a gizmo position's z is ignored), and whether it moved."""
-        return scene.clamp_to_workspace(point, *solver.reach)
+        return planar_scene.clamp_to_workspace(point, *solver.reach)
 
     def gizmo_target(self, solver, gizmo, current) -> np.ndarray:
         """The target a dragged gizmo asks for: its (x, y) (the one gizmo: nothing of `current` is kept)."""
         return np.asarray(gizmo.position, dtype=np.float64)[:2]
 
-    def drawable(self, result, solver, target, partial=None) -> tuple[scene.SolveView, np.ndarray]:
+    def drawable(self, result, solver, target, partial=None) -> tuple[planar_scene.SolveView, np.ndarray]:
         """A solve's view and its trail (S+1, K*N, 2, 3); `partial` is for pose models (a planar target is a point)."""
-        view = scene.build_view(result, solver.lengths, target)
-        return view, scene.trail_points(view.joints)
+        view = planar_scene.build_view(result, solver.lengths, target)
+        return view, planar_scene.trail_points(view.joints)
 
     def model_text(self, solver) -> str:
         student_steps = None if solver.student is None else student_sampling(solver.student)[1]
@@ -112,7 +134,7 @@ class PlanarKind:
 
     def write_typed_fields(self, inputs, target: np.ndarray) -> None:
         """The typed-target fields show the target solved (so a small change is one edit away)."""
-        inputs.show_for("planar", 2)
+        inputs.show_fields(point=True, rotation=False)
         inputs.xy.value = tuple(round(float(value), 3) for value in target[:2])
 
     def flat_picture(self, solved) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:
@@ -137,7 +159,7 @@ class PlanarKind:
         dots = np.broadcast_to(np.array(JOINT_SPACE_DOT, np.uint8), (view.num_samples, 3)).copy()
         dots[highlight] = ACCENT_DARK
         return PlanarPalette(
-            arms=arms, trail=scene.trail_colors(ramp, view.num_links),
+            arms=arms, trail=planar_scene.trail_colors(ramp, view.num_links),
             tips=fade_colors(view.num_states, TIP_FAINT, TIP_DARK), dots=dots,
         )  # fmt: skip
 

@@ -2,7 +2,7 @@
 
 Owns the workspace (grid, boundary circles, base), the target's gizmo and red cross, and the
 K arms of the state shown: the trail, links, joints, tips, x̂0, the refined poses and the
-prior's draw. Only the drawing loop (scene_writer.py) calls it. What to draw is `scene.py`'s
+prior's draw. Only the drawing loop (scene_writer.py) calls it. What to draw is `planar_scene.py`'s
 (plain numpy); this file copies those arrays into viser handles.
 """
 
@@ -14,7 +14,7 @@ import viser
 from ikdp_viz import robot_meshes
 from ikdp_viz.camera import Extent, camera_fit, over_the_point
 from ikdp_viz.frame import Frame
-from ikdp_viz.scene import (
+from ikdp_viz.planar_scene import (
     ARM_LIFT,
     HIGHLIGHT_LIFT,
     REFINED_LIFT,

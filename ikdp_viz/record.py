@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ikdp_viz.frame import CLOCK_CHOICES, ViewSettings, state_offsets
-from ikdp_viz.scene import TRAIL_CHOICES
+from ikdp_viz.planar_scene import TRAIL_CHOICES
 from ikdp_viz.style import legend_html
 
 PROGRAM = "python -m ikdp_viz.record"  # the usage line names the module, as a user types it
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> None:
     from ikdp.samplers import SAMPLERS
     from ikdp.shipped import shipped_dir
     from ikdp_viz.arm_kinds import arm_kind
-    from ikdp_viz.command_line import (
+    from ikdp_viz.models import (
         check_viewer_packages,
         checkpoint_path,
         command_target,
@@ -163,8 +163,7 @@ def main(argv: list[str] | None = None) -> None:
 
     config = tyro.cli(RecordConfig, args=argv, prog=PROGRAM, description=RecordConfig.__doc__)
     check_viewer_packages(PROGRAM)  # before the modules that import viser
-    from ikdp_viz.session import Session
-    from ikdp_viz.solving import SolveRequest, solve
+    from ikdp_viz.solving import Session, SolveRequest, solve
     from ikdp_viz.student import STUDENT, model_and_student, opening_sampler
 
     torch.set_num_threads(1)

@@ -27,8 +27,8 @@ from ikdp_viz.camera import camera_fit_3d
 from ikdp_viz.chain_kind import VIOLATING_GHOST_OPACITY, ghost_opacities
 from ikdp_viz.chain_scene import mesh_poses, skeleton_segments
 from ikdp_viz.frame import Frame
+from ikdp_viz.planar_scene import estimate_rows, grid_segments, trail_rows, trail_until
 from ikdp_viz.robot_meshes import light_mesh, robot_meshes
-from ikdp_viz.scene import estimate_rows, grid_segments, trail_rows, trail_until
 from ikdp_viz.style import ESTIMATE, GRID_CELL, GRID_SECTION, LINE_PIXELS, REFINED, prior_lines, removed, start_rebuild
 
 SKELETON_PIXELS = 2.5  # the current state's skeletons, over the thinner trail

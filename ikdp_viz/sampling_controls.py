@@ -43,6 +43,7 @@ class SamplingControls:
     def on_switch(self) -> None:
         """The button: the student's few steps <-> the teacher's full DDPM (one click, to compare the two)."""
         self.panel.sampler.value = "ddpm" if self.panel.sampler.value == STUDENT else STUDENT
+        self.on_sampler()  # the loop wrote the dropdown: what follows from it is the loop's to do
 
     def on_samples(self) -> None:
         options = highlight_options(int(self.panel.samples.value))

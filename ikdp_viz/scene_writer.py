@@ -1,8 +1,8 @@
 """The drawing loop: the one thread that writes the viewer's scene, cameras and panel outputs.
 
-Gizmo callbacks, panel callbacks and the solve worker never touch a scene node: they
-`post()` a message (messages.py), and this thread applies the messages one at a time, in
-the order they were posted, and plays the animation between them; the loop is the clock.
+Gizmo callbacks, panel callbacks and the solve worker never touch a scene node: they set
+fields of one intent (`ask`, intent.py); this thread takes the intent, submits the newest
+solve, adopts the newest result and plays the animation; the loop is the clock.
 Each picture is first a plain `Frame` (frame.py) built from one snapshot (the solve on
 screen, the state, the panel's view settings); the arm view (planar_view.py or
 robot_view.py, its nodes), the side views and the panel's outputs (scene_writer.py) are
@@ -33,26 +33,12 @@ from ikdp_viz.frame import (
     solve_noise_levels,
     state_offsets,
 )
-from ikdp_viz.joint_space_nodes import Stage
-from ikdp_viz.messages import (
-    Animation,
-    Call,
-    MessageLoop,
-    NewModel,
-    PlaceTarget,
-    Redraw,
-    ReplayWhenDrawn,
-    ShowError,
-    ShowPrior,
-    ShowSolve,
-    ShowState,
-    TabOpened,
-    TogglePlay,
-)
+from ikdp_viz.intent import Animation, Asked, Intent, StateAsked, TargetMove
+from ikdp_viz.joint_space_view import Stage
 from ikdp_viz.panel import Panel, plot_axes, plot_scales
-from ikdp_viz.scene import nearest_state
-from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data
+from ikdp_viz.planar_scene import nearest_state
 from ikdp_viz.style import COMPARE_STROKE, Entry, legend_html
+from ikdp_viz.teaching import schedule_curves, schedule_plot_data
 
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 NOISE_HOLD = 0.6  # seconds pure noise (t = T) shows before a played denoising moves (the noisy steps pass fast)
@@ -61,7 +47,7 @@ PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts
 
 
 class SceneWriter:
-    """Owns what the browser shows, the solve on screen and the animation; applies posted messages on its thread."""
+    """Owns what the browser shows, the solve on screen and the animation; takes what is asked on its thread."""
 
     def __init__(self, server: viser.ViserServer, panel: Panel, solver: ikdp.Solver, target: np.ndarray, gizmo_update):
         self.server, self.panel = server, panel
@@ -84,17 +70,17 @@ class SceneWriter:
         # (arrival, drawn, newest) of each solve put on screen: perf_counter times, and whether its target was
         # still the newest; for benchmarks/viz_latency.py
         self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
-        self.loop = MessageLoop(
-            self._apply, self._tick,
+        self.submit_solve = None  # submit_solve(arrival, animate): the app's solve of the newest target
+        self.on_changed = None  # on_changed(name): the handler of a control that writes other controls
+        self.asked = Asked(
+            self._apply,
             wait=lambda: None if self.animation is None else 1.0 / FRAMES_PER_SECOND,  # the next frame, or none
             failed=lambda: setattr(self, "animation", None),  # a failed frame is reported; the loop goes on, still
         )  # fmt: skip
-        # any thread: queue a message; wait until all posted are applied; stop the loop (messages.py)
-        self.post, self.flush, self.close, self.on_loop_thread = (
-            self.loop.post, self.loop.flush, self.loop.close, self.loop.on_thread
+        # any thread: set fields of the intent; wait until all asked is applied; stop the loop (intent.py)
+        self.ask, self.flush, self.close, self.on_loop_thread = (
+            self.asked.ask, self.asked.flush, self.asked.close, self.asked.on_thread
         )  # fmt: skip
-        # any thread: run(function) calls function(writer) on the loop's thread, the one writer of panel and scene
-        self.run = lambda function, wait=True: self.loop.run(Call(function), wait=wait)
         self._palettes = Palettes()
         self.output = PanelOutput(panel)
         # before any thread exists: the app's constructor is the only writer yet
@@ -107,7 +93,7 @@ class SceneWriter:
 
     view = property(lambda self: self.stage.view)  # the arm view (planar_view.py or robot_view.py): its nodes
     playing = property(lambda self: self.animation is not None)
-    still = property(lambda self: self.loop.idle and self.animation is None)  # nothing to apply, nothing playing
+    still = property(lambda self: self.asked.idle and self.animation is None)  # nothing to apply, nothing playing
 
     def settings(self) -> ViewSettings:
         """The panel's view settings now (read on this thread, once per frame)."""
@@ -121,56 +107,75 @@ class SceneWriter:
             return 0
         return highlighted_sample(str(self.panel.highlight.value), self.solved)
 
-    def _apply(self, message) -> None:
-        if isinstance(message, ShowSolve):
-            self._show_solve(message)
-        elif isinstance(message, ShowState):
-            self.animation = None  # a user's step pauses the animation
-            if self.solved is not None:
-                state = self.state + message.delta if message.state is None else message.state
-                self.snap_note = None
-                if message.timestep is not None:
-                    state = nearest_state(self.solved.view.labels, message.timestep)
-                    self.snap_note = snap_note(self.solved.view.labels, message.timestep, state)
-                self._draw_state(state)
-        elif isinstance(message, TogglePlay):
+    def run(self, function, wait: bool = True) -> None:
+        """Have the loop call `function(writer)` (any thread but the loop's own): long work's panel writes, such as
+        an export's progress, and scripts'."""
+        if self.on_loop_thread():
+            raise RuntimeError("run: already on the drawing loop; call the function directly")
+        self.ask(chores=[function])
+        if wait:
+            self.flush()
+
+    def _apply(self, intent: Intent) -> None:
+        """One pass of the loop: everything asked, in the order a picture depends on it, then the clock."""
+        if intent.model is not None:
+            self._new_model(*intent.model)
+        for client in intent.tabs:
+            self._tab_opened(client)
+        for name in intent.changed:
+            self.on_changed(name)
+        for chore in intent.chores:
+            chore(self)
+        if intent.target is not None:
+            self._place_target(intent.target)
+        if intent.solve is not None:
+            self.submit_solve(*intent.solve)
+        if intent.prior is not None:
+            self.view.show_prior(intent.prior)
+            intent.redraw = True  # the legend lists the prior's draw now
+        if intent.error is not None:
+            self.error, intent.redraw = intent.error, True
+        if intent.solved is not None:
+            self._show_solve(*intent.solved)
+        if intent.replay is not None:
+            self._replay(intent.replay)
+        if intent.state is not None:
+            self._show_asked_state(intent.state)
+        if intent.toggle_play:
             self._toggle_play()
-        elif isinstance(message, ReplayWhenDrawn):
-            self._replay_target = message.target
-            shown = self.solved is not None and self.solved.preview_of is None  # a preview's full solve follows
-            if shown and np.array_equal(self.solved.request.target, message.target):
-                self._replay_target = None
-                self._play_from_start(user=False)
-        elif isinstance(message, Redraw):
+        elif intent.redraw:
             self._redraw()
-        elif isinstance(message, PlaceTarget):
-            self._place_target(message)
-        elif isinstance(message, NewModel):
-            self._new_model(message)
-        elif isinstance(message, ShowPrior):
-            self.view.show_prior(message.joints)
-            self._redraw()  # the legend lists the prior's draw now
-        elif isinstance(message, ShowError):
-            self.error = message.text
-            self._redraw()
-        elif isinstance(message, TabOpened):
-            self._tab_opened(message.client)
-        elif isinstance(message, Call):
-            message.function(self)
-        else:
-            raise TypeError(f"message: expected one of the scene writer's messages, got {message!r}")
+        self._tick()
+
+    def _show_asked_state(self, asked: StateAsked) -> None:
+        self.animation = None  # a user's step pauses the animation
+        if self.solved is None:
+            return
+        state = self.state + asked.delta if asked.state is None else asked.state
+        self.snap_note = None
+        if asked.timestep is not None:
+            state = nearest_state(self.solved.view.labels, asked.timestep)
+            self.snap_note = snap_note(self.solved.view.labels, asked.timestep, state)
+        self._draw_state(state)
+
+    def _replay(self, target: np.ndarray) -> None:
+        """A drag ended at `target`: play its solve from t = T, now if on screen, else once drawn."""
+        self._replay_target = target
+        shown = self.solved is not None and self.solved.preview_of is None  # a preview's full solve follows
+        if shown and np.array_equal(self.solved.request.target, target):
+            self._replay_target = None
+            self._play_from_start(user=False)
 
     # -------------------------------------------------------------- solves and the animation
 
-    def _show_solve(self, message: ShowSolve) -> None:
-        solved = message.solved
+    def _show_solve(self, solved, newest: bool) -> None:
         if solved.request.model is not self.solver:
             return  # a solve of the model that was replaced
         self.animation, self._unseen = None, False
         self.solved, self.error, self.snap_note = solved, None, None
         self.view.clear_prior()  # the prior's draw was for the solve before
         preview = solved.preview_of is not None
-        if self.after_solve is not None and message.newest and not preview:
+        if self.after_solve is not None and newest and not preview:
             self.after_solve(solved)  # follow mode picks the sample kept: before the frame that shows it
         self.output.clock(solved.view, self.noise_levels())
         self.kind.write_typed_fields(self.panel.learn.target, solved.request.target)
@@ -191,7 +196,7 @@ class SceneWriter:
                 self._draw_state(0)
         else:
             self._draw_state(last)
-        self.latencies.append((solved.request.arrival, time.perf_counter(), message.newest))
+        self.latencies.append((solved.request.arrival, time.perf_counter(), newest))
 
     def _redraw(self) -> None:
         """A view setting changed (or a solve failed): the state on screen again, with its legend and readouts."""
@@ -304,17 +309,17 @@ class SceneWriter:
 
     # -------------------------------------------------------------- the target and the model
 
-    def _place_target(self, message: PlaceTarget) -> None:
-        self.target, self.target_clamped = message.target, message.clamped
-        self.view.place_target(message.target, move_gizmo=message.move_gizmo, force=message.force,
+    def _place_target(self, move: TargetMove) -> None:
+        self.target, self.target_clamped = move.target, move.clamped
+        self.view.place_target(move.target, move_gizmo=move.move_gizmo, force=move.force,
                                camera_position=np.asarray(self.server.initial_camera.position))  # fmt: skip
         self.panel.target_text.content = self.kind.target_text(self.solver, self.target, self.target_clamped)
 
-    def _new_model(self, message: NewModel) -> None:
+    def _new_model(self, solver, target) -> None:
         self.animation = None
-        self.solver, self.solved, self.target, self.frame = message.solver, None, message.target, None
-        self.stage.rebuild(message.solver, message.target)
-        self.output.new_model(message.solver.timesteps)
+        self.solver, self.solved, self.target, self.frame = solver, None, target, None
+        self.stage.rebuild(solver, target)
+        self.output.new_model(solver.timesteps)
         self.panel.target_text.content = self.kind.target_text(self.solver, self.target, self.target_clamped)
         self.output.waiting(self.error)
 

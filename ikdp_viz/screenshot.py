@@ -143,7 +143,7 @@ def configured_app(args: ScreenshotConfig):
     from ikdp.shipped import shipped_dir
     from ikdp_viz.app import VizApp, list_checkpoints
     from ikdp_viz.arm_kinds import arm_kind
-    from ikdp_viz.command_line import checkpoint_path
+    from ikdp_viz.models import checkpoint_path
     from ikdp_viz.panel import DEFAULT_DURATION
     from ikdp_viz.student import opening_sampler
 

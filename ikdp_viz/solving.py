@@ -1,35 +1,53 @@
-"""One solve of the viewer: the request as the panel set it, the core's solve, its drawable arrays.
+"""One solve of the viewer: the session's model and target, the request as the panel set it, the core's solve, its
+drawable arrays.
 
-Runs on the solve worker's thread (solve_worker.LatestWorker). A newer request stops a
-running solve through the core's per-step callback: `stop_when` is the one place that
-knows how.
+Every browser tab shares one session. Moves and model switches come from viser's event loop, its callback threads and
+scripts at once; the session's lock makes each change of the target one step, so the order of the targets is the order
+of the requests. A solve runs on the solve worker's thread (solve_worker.LatestWorker); a newer request stops a
+running solve through the core's per-step callback: `stop_when` is the one place that knows how.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import random
 import threading
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 import ikdp
 from ikdp.constraint_base import joint_difference
+from ikdp.samplers import SAMPLERS
 from ikdp.tracking import TrackStep, track_step
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import NEAR_WEIGHT, checkable, final_violations, partial_target, state_violation
-from ikdp_viz.same_noise import rerun_seed
-from ikdp_viz.scene import SolveView
+from ikdp_viz.planar_scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
-from ikdp_viz.student import matched_its_teacher, sampler_label, solve_title, student_sampling, target_title
+from ikdp_viz.student import (
+    STUDENT,
+    TEACHER,
+    distillation_target,
+    matched_its_teacher,
+    sampler_label,
+    solve_title,
+    student_sampling,
+    target_title,
+)
+
+if TYPE_CHECKING:
+    from ikdp_viz.panel import Panel
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
 PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first: 5 steps, about 40 ms here
 REACH_FRACTION = 0.01  # a returned pose within this share of the arm's span reaches the target (1e-2: 0.04 bone
 # lengths on ikdp_n4, 12 mm on the Panda; ikdp_n4 unpulled lands 0.010 away, a pull that lost the target 0.15)
+
+RERUN_SEED_STRIDE = 1_000_003  # a prime: run r of seed s draws its step noise from s + r * stride, apart from s + 1
 
 
 @dataclass(frozen=True)
@@ -45,7 +63,7 @@ class SolveRequest:
     seed: int  # of the solve's torch.Generator
     arrival: float  # time.perf_counter() when the move (or settings change) arrived
     animate: bool  # play the denoising once drawn; False while the gizmo is being dragged
-    compare_sampler: str | None = None  # also solve with this sampler from the same x_T (compare.py); None: not
+    compare_sampler: str | None = None  # also solve with this sampler from the same x_T (compare_view.py); None: not
     compare_steps: int | None = None  # its number of steps (None: all T)
     compare_spacing: str | None = None  # its timestep grid (None: the model's default for it)
     constraints: tuple = ()  # ikdp constraints from the Constraints panel (constraint_controls.py)
@@ -56,7 +74,7 @@ class SolveRequest:
     follow_from: np.ndarray | None = None  # follow mode: the pose kept last, from which ikdp.tracking's step goes
     target_clamped: bool = False  # the point asked for lay outside the workspace (a robot's reach ball): `target` is
     # the nearest point inside it
-    rerun: int = 0  # again from the same x_T: run r > 0 keeps the seed's x_T and reseeds the step noise (same_noise.py)
+    rerun: int = 0  # again from the same x_T: run r > 0 keeps the seed's x_T and reseeds the step noise (teaching.py)
 
     @property
     def model(self) -> ikdp.Solver:
@@ -100,7 +118,7 @@ class Solved:
     # which one fails, for the readouts' "why none meets"
     followed: TrackStep | None = None  # follow mode: ikdp.tracking's step to this target
     followed_sample: int | None = None  # the sample whose returned pose is drawn as the pose that step kept
-    forward: bool = False  # the forward process of a solve's poses (noise_it.py), not a denoising
+    forward: bool = False  # the forward process of a solve's poses (teaching.py), not a denoising
     reaches_unconstrained: bool | None = None  # where no pose reaches under locks or obstacles: whether the same
     # noise solved without them reaches (they cause the miss) or not (they do not); None: not asked
 
@@ -119,7 +137,7 @@ def preview_request(request: SolveRequest) -> SolveRequest | None:
     solver, (sampler, steps) = request.solver, PREVIEW_SAMPLER
     if request.student is not None:
         solver, (sampler, steps) = request.student, student_sampling(request.student)
-    if request.animate or request.solver.arm.kind == "planar" or request.solver is request.student:
+    if request.animate or not arm_kind(request.solver).previews_drags or request.solver is request.student:
         return None
     same_model_and_sampler = solver is request.solver and request.sampler == sampler
     if same_model_and_sampler or (request.steps or request.solver.timesteps) <= steps:
@@ -269,3 +287,99 @@ def kept_in_its_sample(arm, step: TrackStep) -> tuple[ikdp.SolveResult, int]:
         rotation_error = rotation_error.clone()
         rotation_error[0, slot] = step.kept.rotation_error[0]
     return dataclasses.replace(result, angles=angles, tip_error=tip_error, rotation_error=rotation_error), slot
+
+
+def rerun_seed(seed: int, run: int) -> int:
+    """The seed of run `run`'s step noise (run 0: the solve's own generator goes on; this is never asked)."""
+    if run < 1:
+        raise ValueError(f"run: expected a rerun numbered from 1, got {run}")
+    return (int(seed) + int(run) * RERUN_SEED_STRIDE) % 2**63
+
+
+def initial_target(solver: ikdp.Solver, target=None) -> np.ndarray:
+    """`target` clamped into the solver's workspace, or the arm kind's first target when None."""
+    return arm_kind(solver).initial_target(solver, target)
+
+
+class Session:
+    """The model and the target; `lock` is held while either changes and its consequences are posted."""
+
+    def __init__(self, solver: ikdp.Solver, target=None, student: ikdp.Solver | None = None):
+        self.lock = threading.RLock()
+        self.solver = solver  # the model the newest requests use
+        self.student = student  # its few-step student, the sampler "student" (student.py); None: none here
+        self.target = initial_target(solver, target)  # planar (2,), chain pose (7,); inside the workspace
+        self.target_clamped = False  # the point asked for lay outside the workspace
+
+    def move(self, point, *, from_gizmo: bool) -> tuple[np.ndarray, bool, bool]:
+        """Clamp `point` into the workspace and make it the target: (target, clamped, changed). Hold `lock`."""
+        target, clamped = arm_kind(self.solver).clamp(self.solver, point)
+        changed = not np.array_equal(target, self.target)
+        # A drag past the boundary ends on the boundary point the app put the gizmo at: still the clamped request.
+        clamped = clamped or (not changed and from_gizmo and self.target_clamped)
+        self.target, self.target_clamped = target, clamped
+        return target, clamped, changed
+
+    def request(
+        self,
+        panel: Panel,
+        *,
+        arrival: float | None = None,
+        animate: bool = True,
+        constraints: tuple = (),
+        chosen_steps: int | None = None,
+        follow_from: np.ndarray | None = None,
+    ) -> SolveRequest:
+        """A solve of the current target with the panel's settings (a new seed first, if the panel asks).
+
+        `chosen_steps`: the steps the user chose for a sampler that can skip some, which the panel's slider
+        does not show while DDPM runs (it shows T); None reads the slider.
+        """
+        # a new seed each solve when the panel asks (the app has the loop show it)
+        seed = random.randrange(2**31) if panel.new_seed.value else int(panel.seed.value)
+        choice = str(panel.sampler.value)
+        solver, sampler, steps = self.sampling(choice, int(panel.steps.value))
+        return SolveRequest(
+            solver=solver,
+            target=self.target.copy(),
+            num_samples=int(panel.samples.value),
+            sampler=sampler,
+            steps=steps,
+            refine_steps=int(panel.refine_steps.value) if panel.refine.value else 0,
+            seed=seed,
+            arrival=time.perf_counter() if arrival is None else arrival,
+            animate=animate,
+            **self.compare_settings(panel, choice, chosen_steps),
+            constraints=tuple(constraints),
+            student=self.student,
+            teacher=None if solver is self.solver else self.solver,
+            follow_from=follow_from,
+            target_clamped=self.target_clamped,
+        )
+
+    def sampling(self, choice: str, steps: int | None) -> tuple[ikdp.Solver, str, int | None]:
+        """The dropdown's `choice` as (model, sampler, steps): the student's own few steps, or the model's sampler
+        with `steps` where it can skip some (None: all T)."""
+        if choice == STUDENT and self.student is not None:
+            return (self.student, *student_sampling(self.student))
+        if choice not in SAMPLERS:
+            raise ValueError(f"sampler: expected one of {tuple(SAMPLERS)}, got {choice!r}")
+        return self.solver, choice, steps if SAMPLERS[choice].supports_steps else None
+
+    def compare_settings(self, panel: Panel, choice: str, chosen_steps: int | None = None) -> dict:
+        """The comparison the panel asks for: another sampler (or the student, or from it the teacher) from the
+        same x_T, unless it is the sampler itself."""
+        other = str(panel.learn.compare.value)
+        if other == choice:  # nothing drawn beside it: said, or the choice looks broken
+            return {"compare_note": f"compare with: **{other}** is the sampler shown: nothing to compare"}
+        if other == "off" or (other not in SAMPLERS and other not in (STUDENT, TEACHER)):
+            return {}
+        if other in (STUDENT, TEACHER) and self.student is None:
+            return {}
+        if other == TEACHER:  # the teacher's run the student was distilled from, beside either
+            sampler, steps, spacing = distillation_target(self.student)
+            return {"compare_sampler": sampler, "compare_steps": steps, "compare_solver": self.solver,
+                    "compare_spacing": spacing}  # fmt: skip
+        steps = int(panel.steps.value) if chosen_steps is None else chosen_steps
+        solver, sampler, steps = self.sampling(other, steps)
+        return {"compare_sampler": sampler, "compare_steps": steps, "compare_solver": solver}

@@ -14,7 +14,8 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ikdp_viz.messages import ShowState
+from ikdp_viz.arm_kinds import arm_kind
+from ikdp_viz.intent import StateAsked
 
 TWO_LINK_MODEL = "ikdp_n2"  # the model whose target has exactly two answers, elbow up and elbow down
 TWO_LINK_TARGET = (1.2, 0.8)  # a target of that arm where both branches are clear apart
@@ -129,7 +130,7 @@ class TourRunner:
     @property
     def offered(self) -> bool:
         """The tour is about the planar arm; a robot's viewer hides it."""
-        return self.app.solver.arm.kind == "planar"
+        return arm_kind(self.app.solver).teaches
 
     def start(self) -> None:
         """Open the tour at its first step, remembering the model and target to come back to."""
@@ -197,10 +198,9 @@ class TourRunner:
             if generation != self._generation:
                 return
             app.request_solve(animate=view.timestep is None)
-            app.worker.wait_idle(SOLVE_WAIT)
-            app.writer.flush(SOLVE_WAIT)
+            app.wait_until_drawn(SOLVE_WAIT)
             if view.timestep is not None and generation == self._generation:
-                app.writer.post(ShowState(timestep=float(view.timestep)))
+                app.writer.ask(state=StateAsked(timestep=float(view.timestep)))
                 app.writer.flush(SOLVE_WAIT)
             if generation == self._generation:
                 self.applied.set()

@@ -27,26 +27,25 @@ def roll_pitch_yaw_degrees(wxyz) -> np.ndarray:
     return np.rad2deg(np.array([angles.roll, angles.pitch, angles.yaw]))
 
 
-def target_from_numbers(values, *, kind: str, target_dim: int, current: np.ndarray) -> np.ndarray:
-    """The target that typed `values` ask for (not yet pulled into the workspace).
-
-    planar: x, y. A robot: x, y, z metres; then roll, pitch, yaw degrees (6 numbers) or w, x, y, z (7);
-    a pose model given 3 numbers keeps `current`'s rotation. ValueError names what was expected.
-    """
+def finite_numbers(values) -> np.ndarray:
     values = np.asarray(values, dtype=np.float64).reshape(-1)
     if not np.isfinite(values).all():
         raise ValueError(f"target: expected finite numbers, got {values.tolist()}")
-    if kind == "planar":
-        if values.size != 2:
-            raise ValueError(f"target: a planar arm's target is x y, got {values.size} numbers")
-        return values
-    if values.size == target_dim:  # every number of the target: a chain's pose or position, a tree's every hand's
-        return values
-    if target_dim not in (3, 7):  # several end effectors (a tree): no shorthand names one hand of them
-        raise ValueError(
-            f"target: this model's target is {target_dim} numbers (every hand's position, then every hand's w x y z), "
-            f"got {values.size} numbers"
-        )
+    return values
+
+
+def point_from_numbers(values) -> np.ndarray:
+    """A planar arm's typed target: x, y (not yet pulled into the workspace). ValueError names what was expected."""
+    values = finite_numbers(values)
+    if values.size != 2:
+        raise ValueError(f"target: a planar arm's target is x y, got {values.size} numbers")
+    return values
+
+
+def pose_from_numbers(values, *, target_dim: int, current: np.ndarray) -> np.ndarray:
+    """A robot's typed target: x, y, z metres; then roll, pitch, yaw degrees (6 numbers) or w, x, y, z (7); a pose
+    model given 3 numbers keeps `current`'s rotation. ValueError names what was expected."""
+    values = finite_numbers(values)
     if target_dim == 3:
         if values.size != 3:
             raise ValueError(f"target: this robot model's target is a position x y z (m), got {values.size} numbers")
@@ -106,10 +105,13 @@ class LockField:
         return clamped * self.scale, note
 
 
-def lock_fields(arm) -> list[LockField]:
-    """One field per joint of `arm`: a planar arm's headings (any angle), a chain's joints by type and limits."""
-    if arm.kind == "planar":
-        return [LockField(f"θ{index + 1}", "°", math.pi / 180, None, None) for index in range(arm.num_joints)]
+def heading_lock_fields(arm) -> list[LockField]:
+    """One field per link of a planar `arm`: its absolute heading, any angle."""
+    return [LockField(f"θ{index + 1}", "°", math.pi / 180, None, None) for index in range(arm.num_joints)]
+
+
+def joint_lock_fields(arm) -> list[LockField]:
+    """One field per joint of a robot `arm`, by its type and limits."""
     limits = arm.joint_limits.tolist()
     fields = []
     for name, kind, (low, high) in zip(arm.joint_names, arm.joint_types, limits, strict=True):

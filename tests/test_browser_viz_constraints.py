@@ -96,10 +96,9 @@ def test_picking_a_partial_target_in_the_page(browser, tiny_chain_checkpoint):
 
 def sphere_pixels(page, app, sphere) -> float:
     """The share of the canvas that changes when the dropped sphere is hidden: what of it a user sees."""
-    from ikdp_viz.messages import Call
 
     shown = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))
-    app.writer.post(Call(lambda writer: setattr(sphere, "visible", False)))  # the loop writes every node
+    app.writer.run(lambda writer: setattr(sphere, "visible", False), wait=False)  # the loop writes every node
     app.writer.flush()
     time.sleep(SETTLE_IN_PAGE)
     hidden = read_png(page.screenshot(timeout=BROWSER_TIMEOUT * 1000))

@@ -91,7 +91,7 @@ def test_the_viewer_without_its_extra_says_what_to_install_in_one_line(module, a
 
 def test_the_viewer_checks_for_exactly_the_viz_extras_packages():
     tomllib = pytest.importorskip("tomllib")
-    from ikdp_viz.command_line import VIEWER_MODULES
+    from ikdp_viz.models import VIEWER_MODULES
 
     extra = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["optional-dependencies"]["viz"]
     assert sorted(VIEWER_MODULES.values()) == sorted(requirement.split(">")[0] for requirement in extra)

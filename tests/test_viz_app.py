@@ -17,7 +17,7 @@ from viz_helpers import drag_gizmo, running_app, settle
 import ikdp
 from ikdp.train import TrainConfig, train
 from ikdp_viz.app import list_checkpoints
-from ikdp_viz.scene import HIGHLIGHT_LIFT
+from ikdp_viz.planar_scene import HIGHLIGHT_LIFT
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.solving import SolveRequest, solve
 
@@ -129,7 +129,8 @@ def test_a_drag_released_past_the_boundary_still_reads_clamped_and_sends_the_cro
         app.gizmo._impl.api._queue_scene_message = real_queue
     assert np.allclose(app.solved.view.target, [outer, 0.0])
     assert "Clamped to the workspace boundary" in app.panel.target_text.content
-    positions = [message.position for message in sent if type(message).__name__ == "SetPositionMessage"]
+    positions = [message.position for message in sent
+                 if type(message).__name__ == "SetPositionMessage" and message.name == app.gizmo.name]  # fmt: skip
     assert positions and np.allclose(positions[-1], [outer, 0.0, 0.0])  # the page's cross is moved there
 
 
@@ -154,7 +155,7 @@ def test_the_default_picture_follows_the_highlighted_sample_as_the_papers_figure
     brightness = app.trail.colors.reshape(view.num_states, -1).astype(int).sum(axis=1)
     assert brightness[0] > brightness[-1] and (np.diff(brightness) <= 0).all()
     # the others' final poses light lines, the highlighted one dark blue with its joints; the others' joints not drawn
-    from ikdp_viz.scene import line_colors
+    from ikdp_viz.planar_scene import line_colors
     from ikdp_viz.style import ACCENT_DARK, OTHERS_FINAL
 
     link_colors = app.links.colors.reshape(num_samples, num_links, 2, 3)[:, 0, 0]
@@ -647,20 +648,18 @@ def test_the_page_opens_on_pure_noise_and_plays_when_a_tab_connects(solver):
     tab opened on the finished pose; and viser's software-WebGL toast covered the scene."""
     from types import SimpleNamespace
 
-    from ikdp_viz.messages import TabOpened
-
     sent = []
     tab = SimpleNamespace(_websock_connection=SimpleNamespace(queue_message=sent.append))
     with running_app(solver, animation_seconds=1.0, wait_for_tab=True) as app:
         assert app.wait_until_still(60)
         assert app.solved is not None and app.state == 0 and not app.playing  # pure noise, waiting
-        app.writer.post(TabOpened(tab))
+        app.writer.ask(tabs=[tab])
         app.writer.flush()
         assert app.playing and app.state == 0  # plays from t = T, holding pure noise a moment first
         assert [message.uuid for message in sent] == ["webgl-software-rendering"]
         settle(app)
         assert app.state == app.solved.view.num_states - 1
-        app.writer.post(TabOpened(tab))  # a second tab: the solve was seen, nothing replays
+        app.writer.ask(tabs=[tab])  # a second tab: the solve was seen, nothing replays
         app.writer.flush()
         assert not app.playing
 

@@ -250,8 +250,6 @@ def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
     first, the readout naming it, and the DDPM solve replaces it."""
     from viz_helpers import shipped_solver_or_skip
 
-    from ikdp_viz.messages import ShowSolve
-
     # a robot model without a student (one with a student previews with it: tests/test_viz_student.py)
     with running_app(shipped_solver_or_skip("ikdp_z1"), animation_seconds=0.0) as app:
         settle(app)
@@ -260,7 +258,7 @@ def test_a_drag_shows_a_fast_preview_first_then_the_full_solve_and_says_which():
         kinds = [(solved.request.sampler, solved.preview_of) for solved in shown]
         assert kinds == [("dpmpp2m", "ddpm"), ("ddpm", None)]  # the preview first, then the full solve
         assert app.solved.request.sampler == "ddpm" and "Fast preview" not in app.panel.readout_text.content
-        app.writer.post(ShowSolve(shown[0], newest=True))
+        app.writer.ask(solved=(shown[0], True))
         app.writer.flush()
         assert "**Fast preview** (dpmpp2m, 5 steps) while the ddpm solve runs" in app.panel.readout_text.content
         before = len(shown)

@@ -7,8 +7,8 @@ import pytest
 from viz_helpers import running_app, settle
 
 import ikdp
-from ikdp_viz.compare import offset
-from ikdp_viz.scene import compare_curve
+from ikdp_viz.compare_view import offset
+from ikdp_viz.planar_scene import compare_curve
 
 
 @pytest.fixture

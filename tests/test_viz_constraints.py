@@ -214,14 +214,14 @@ def test_a_pulled_solve_still_reaches_the_target_or_says_it_was_dropped(mode):
 def test_lock_fields_are_degrees_within_the_joints_limits_and_any_angle_wraps():
     """The "θ1 value" took 90 and used 90 rad; a robot's lock fields were radians beside targets
     in degrees, and a value past a limit was used as typed."""
-    from ikdp_viz.typed_target import lock_fields
+    from ikdp_viz.typed_target import heading_lock_fields, joint_lock_fields
 
-    planar = lock_fields(ikdp.PlanarArm([1.0, 1.0]))
+    planar = heading_lock_fields(ikdp.PlanarArm([1.0, 1.0]))
     assert planar[0].label == "θ1 (°)" and planar[0].wraps
     assert planar[0].joint_value(90.0) == (pytest.approx(np.pi / 2), None)
     value, note = planar[0].joint_value(270.0)
     assert value == pytest.approx(-np.pi / 2) and "wrapped" in note
-    panda = lock_fields(ikdp.load_robot("panda"))
+    panda = joint_lock_fields(ikdp.load_robot("panda"))
     limits = np.degrees(ikdp.load_robot("panda").joint_limits.numpy())
     assert panda[3].label == "panda_joint4 (°)" and panda[3].low == pytest.approx(limits[3, 0], abs=0.01)
     value, note = panda[3].joint_value(10.0)  # joint 4's upper limit is about -4 degrees

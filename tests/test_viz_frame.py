@@ -14,7 +14,7 @@ from viz_helpers import hand_made_result
 from ikdp_viz.chain_kind import ChainKind, TreeKind
 from ikdp_viz.frame import Palettes, ViewSettings, build_frame
 from ikdp_viz.planar_kind import PlanarKind
-from ikdp_viz.scene import build_view, trail_points
+from ikdp_viz.planar_scene import build_view, trail_points
 from ikdp_viz.style import ACCENT_DARK, HOLDS, REFINED, TIP_DARK, TIP_FAINT, VIOLATES
 
 

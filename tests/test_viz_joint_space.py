@@ -24,7 +24,7 @@ from ikdp_viz.joint_space import (
     two_link_solutions,
     wrap_to_square,
 )
-from ikdp_viz.joint_space_nodes import (
+from ikdp_viz.joint_space_view import (
     arrow_segments,
     cross_segments,
     curve_segments,
@@ -32,7 +32,7 @@ from ikdp_viz.joint_space_nodes import (
     model_timestep,
     square_beside,
 )
-from ikdp_viz.scene import state_labels
+from ikdp_viz.planar_scene import state_labels
 
 TWO_LINK = "ikdp_n2"
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from viz_helpers import hand_made_result
 
+from ikdp_viz.planar_scene import build_view
 from ikdp_viz.readouts import error_range, solve_text, target_text
-from ikdp_viz.scene import build_view
 
 
 def test_target_text_gives_the_coordinates_and_says_when_the_target_was_clamped():

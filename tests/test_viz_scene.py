@@ -13,7 +13,7 @@ from viz_helpers import hand_made_result
 
 import ikdp
 from ikdp_viz import robot_meshes
-from ikdp_viz.scene import (
+from ikdp_viz.planar_scene import (
     LAYER_HEIGHT,
     arm_placement,
     build_view,
@@ -223,10 +223,10 @@ def test_importing_the_viewer_does_nothing_and_scene_code_never_imports_viser():
         "before = threading.active_count()\n"
         "out = io.StringIO()\n"
         "with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):\n"
-        "    import ikdp_viz, ikdp_viz.scene, ikdp_viz.robot_meshes, ikdp_viz.readouts\n"
+        "    import ikdp_viz, ikdp_viz.planar_scene, ikdp_viz.robot_meshes, ikdp_viz.readouts\n"
         "    import ikdp_viz.solve_worker, ikdp_viz.solving\n"
         "    assert 'viser' not in sys.modules, 'scene-building code imported viser'\n"
-        "    import ikdp_viz.panel, ikdp_viz.session, ikdp_viz.scene_writer, ikdp_viz.app, ikdp_viz.__main__\n"
+        "    import ikdp_viz.panel, ikdp_viz.solving, ikdp_viz.scene_writer, ikdp_viz.app, ikdp_viz.__main__\n"
         "    import ikdp_viz.screenshot\n"
         "assert out.getvalue() == '', out.getvalue()\n"
         "assert threading.active_count() == before, threading.enumerate()\n"

@@ -16,7 +16,7 @@ from viz_helpers import running_app, settle
 
 import ikdp
 
-LOOP_THREAD = "ikdp-viz-scene"  # messages.py names the drawing loop's thread so
+LOOP_THREAD = "ikdp-viz-scene"  # intent.py names the drawing loop's thread so
 
 
 class FakeTab:

@@ -13,7 +13,6 @@ import torch
 from viz_helpers import running_app, settle, solves_shown_by_a_robot_drag
 
 import ikdp
-from ikdp_viz.messages import ShowSolve
 from ikdp_viz.student import (
     STUDENT,
     TEACHER,
@@ -131,7 +130,7 @@ def test_a_drag_with_the_teacher_previews_the_student(app):
         (True, "teacher's ddpm"),
         (False, None),
     ]
-    app.writer.post(ShowSolve(shown[0], newest=True))
+    app.writer.ask(solved=(shown[0], True))
     app.writer.flush()
     expected = f"**Fast preview** (student's ddim, {STUDENT_STEPS} steps) while the teacher's ddpm solve runs"
     assert expected in app.panel.readout_text.content
@@ -182,7 +181,7 @@ def test_picking_a_students_file_shows_the_student_with_its_teacher(app, models,
 
 def test_a_folders_checkpoints_are_read_once_for_the_dropdown_and_the_student(models, monkeypatch):
     import ikdp_viz.student as headers
-    from ikdp_viz.model_choices import ModelChoices, list_checkpoints
+    from ikdp_viz.models import ModelChoices, list_checkpoints
 
     teacher_path, _, folder = models
     teacher = ikdp.load(teacher_path)

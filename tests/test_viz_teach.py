@@ -4,12 +4,28 @@ import numpy as np
 import pytest
 
 from ikdp.schedule import DiffusionSchedule, ScheduleConfig
-from ikdp_viz.noise_it import FORWARD, forward_solved, is_forward
-from ikdp_viz.same_noise import Rerun, largest_move, rerun_seed
-from ikdp_viz.scene import state_labels
-from ikdp_viz.schedule_plot import schedule_curves, schedule_plot_data, visited_count
+from ikdp_viz.planar_scene import state_labels
+from ikdp_viz.readouts import (
+    GLOSSARY,
+    branch_name,
+    define,
+    glossary_markdown,
+    held_text,
+    joint_space_title,
+    model_words,
+)
+from ikdp_viz.solving import rerun_seed
+from ikdp_viz.teaching import (
+    FORWARD,
+    Rerun,
+    forward_solved,
+    is_forward,
+    largest_move,
+    schedule_curves,
+    schedule_plot_data,
+    visited_count,
+)
 from ikdp_viz.tour import TOUR, TWO_LINK_MODEL, tour_markdown
-from ikdp_viz.words import GLOSSARY, branch_name, define, glossary_markdown, held_text, joint_space_title, model_words
 
 
 def test_tour_is_six_one_sentence_steps_the_issue_lists():
@@ -129,7 +145,7 @@ def test_joint_space_words_name_the_branches_and_the_held_joints():
 
 
 def test_the_followed_trail_is_fainter_than_the_final_samples_until_the_pose_forms():
-    from ikdp_viz.scene import emphasis_colors
+    from ikdp_viz.planar_scene import emphasis_colors
     from ikdp_viz.style import ACCENT_DARK, OTHERS_FINAL, TRAIL_FAINT
 
     arms, trail = emphasis_colors(81, 16, 3, "highlighted")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from viz_helpers import running_app, settle, shipped_solver_or_skip
 
-from ikdp_viz.noise_it import is_forward
+from ikdp_viz.teaching import is_forward
 from ikdp_viz.tour import TOUR
 
 

@@ -7,7 +7,7 @@ import pytest
 from viz_helpers import running_app, settle
 
 import ikdp
-from ikdp_viz.typed_target import roll_pitch_yaw_degrees, rotation_wxyz, target_from_numbers
+from ikdp_viz.typed_target import point_from_numbers, pose_from_numbers, roll_pitch_yaw_degrees, rotation_wxyz
 
 
 def test_roll_pitch_yaw_in_degrees_round_trips_and_means_x_then_y_then_z():
@@ -19,12 +19,12 @@ def test_roll_pitch_yaw_in_degrees_round_trips_and_means_x_then_y_then_z():
 
 def test_numbers_become_a_target_for_each_kind_of_arm_or_a_one_line_error():
     current = np.array([0.3, 0.0, 0.5, 0.0, 1.0, 0.0, 0.0])
-    assert np.allclose(target_from_numbers((1.0, 2.0), kind="planar", target_dim=2, current=None), [1.0, 2.0])
-    kept = target_from_numbers((0.4, 0.1, 0.2), kind="chain", target_dim=7, current=current)
+    assert np.allclose(point_from_numbers((1.0, 2.0)), [1.0, 2.0])
+    kept = pose_from_numbers((0.4, 0.1, 0.2), target_dim=7, current=current)
     assert np.allclose(kept, [0.4, 0.1, 0.2, 0.0, 1.0, 0.0, 0.0])  # a position alone keeps the rotation
-    turned = target_from_numbers((0.4, 0.1, 0.2, 0, 0, 90), kind="chain", target_dim=7, current=current)
+    turned = pose_from_numbers((0.4, 0.1, 0.2, 0, 0, 90), target_dim=7, current=current)
     assert np.allclose(turned[3:], rotation_wxyz((0, 0, 90)))
-    quaternion = target_from_numbers((0.4, 0.1, 0.2, 1, 0, 0, 0), kind="chain", target_dim=7, current=current)
+    quaternion = pose_from_numbers((0.4, 0.1, 0.2, 1, 0, 0, 0), target_dim=7, current=current)
     assert np.allclose(quaternion, [0.4, 0.1, 0.2, 1, 0, 0, 0])
     for values, kind, dim, message in (
         ((1.0,), "planar", 2, "planar arm's target is x y"),
@@ -33,7 +33,10 @@ def test_numbers_become_a_target_for_each_kind_of_arm_or_a_one_line_error():
         ((np.nan, 1.0), "planar", 2, "finite"),
     ):
         with pytest.raises(ValueError, match=message):
-            target_from_numbers(values, kind=kind, target_dim=dim, current=current)
+            if kind == "planar":
+                point_from_numbers(values)
+            else:
+                pose_from_numbers(values, target_dim=dim, current=current)
 
 
 def test_a_target_typed_in_the_planar_panel_is_solved_and_the_fields_follow_drags(tiny_checkpoint):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 
-from ikdp_viz.messages import Animation
+from ikdp_viz.intent import Animation
 from ikdp_viz.solve_worker import Cancelled, LatestWorker
 
 

@@ -65,7 +65,7 @@ def solves_shown_by_a_robot_drag(app, step: float = 0.05) -> list:
     """Drag a robot's gizmo `step` metres along x (one "update"), let it settle; every solve drawn, in order."""
     shown = []
     original = app.writer._show_solve
-    app.writer._show_solve = lambda message: (shown.append(message.solved), original(message))[1]
+    app.writer._show_solve = lambda solved, newest: (shown.append(solved), original(solved, newest))[1]
     moved = np.concatenate([app.target[:3] + np.array([step, 0.0, 0.0]), app.target[3:]])
     app.move_target(moved, from_gizmo=True, dragging=True)
     settle(app)

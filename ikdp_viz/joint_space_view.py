@@ -16,11 +16,11 @@ import numpy as np
 import viser
 
 import ikdp
-from ikdp_viz.arm_kinds import arm_view_class, compare_view_class
+from ikdp_viz.arm_kinds import arm_kind, arm_view_class, compare_view_class
 from ikdp_viz.camera import Extent, camera_over, fit_fields_of_view, move_cameras
 from ikdp_viz.joint_space import FieldCache, JointSpaceControls, two_link_solutions, wrap_to_square
+from ikdp_viz.readouts import branch_name, held_text, joint_space_title
 from ikdp_viz.style import ARROW, BACKING, FRAME_STRONG, FRAME_WEAK, JOINT_SPACE_DOT, SOLUTION
-from ikdp_viz.words import branch_name, held_text, joint_space_title
 
 FOUND = JOINT_SPACE_DOT  # the final samples' crosses (N > 2): not the target's red, which means the exact solutions
 # Heights above the square, in units of the reach, so that the top-down view draws samples over
@@ -63,7 +63,7 @@ class JointSpaceNodes:
     def draw(self, solver: ikdp.Solver, frame) -> None:
         """Write the view for the frame's state (frame.py); the dots take its joint-space colours. In an atomic."""
         solved, state, highlight = frame.solved, frame.state, frame.highlight
-        if solver.arm.kind != "planar":
+        if not arm_kind(solver).draws_joint_space:
             return
         num_joints = solver.num_links
         self.controls.fit(num_joints)

@@ -17,8 +17,7 @@ import viser
 
 from ikdp_viz.camera import Extent, camera_fit_3d
 from ikdp_viz.chain_scene import skeleton_segments
-from ikdp_viz.robot_view import SKELETON_PIXELS
-from ikdp_viz.scene import (
+from ikdp_viz.planar_scene import (
     arm_placement,
     circle_segments,
     emphasis_colors,
@@ -29,6 +28,7 @@ from ikdp_viz.scene import (
     trail_rows,
     trail_until,
 )
+from ikdp_viz.robot_view import SKELETON_PIXELS
 from ikdp_viz.style import REACH_RING, TARGET_RED
 
 GAP = 0.35  # between the two workspaces, in reach radii
