@@ -11,7 +11,8 @@ texts, no viser) provides what PlanarKind and ChainKind both provide:
 
 - attributes: `name`; `default_sampler` (sampler, steps); `opens_on_student`, `opens_with_trail` (how the
   viewer opens); `chart_error`, `chart_unit`, `chart_scale` (the error chart's y); `holds_text`, `violates_text`
-  (the constraint colours' legend words);
+  (the constraint colours' legend words); `partial_target_note` (the Constraints folder's line where no partial
+  target is offered, or None);
 - the target: `initial_target`, `clamp` (into the reach, and whether it moved), `gizmo_target` (the target a
   dragged gizmo asks for, the other hands' kept from the current one), `typed_numbers`,
   `write_typed_fields`, `target_text`, `target_words`;
@@ -23,7 +24,7 @@ texts, no viser) provides what PlanarKind and ChainKind both provide:
 Its view class owns the scene nodes and draws a Frame (planar_view.PlanarView, robot_view.RobotView show the
 methods: rebuild, update(frame), place_target, show_prior and clear_prior, remove_samples, extent); its compare class
 draws a second sampler beside it.
-tests/test_viz_frame.py runs the legend and frame checks over both kinds; add the new kind to their parameters.
+tests/test_viz_frame.py runs the legend and frame checks over the kinds; add a new kind to their parameters.
 """
 
 from __future__ import annotations
