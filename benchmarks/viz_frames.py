@@ -10,7 +10,8 @@ flags in ikdp_viz/screenshot.py) opens it. For each K the page counts its
 requestAnimationFrame callbacks over the animation, and, as the baseline timed in
 the same run, over as long a time with the final pose standing still. The server
 side counts the states it wrote. Prints a table and writes JSON (medians of
-`--repeats` runs). The target: >= 15 frames/s while K = 16 animates, so that the denoising reads as motion.
+`--repeats` runs). The target: >= 30 frames/s while K = 16 animates on a quiet machine, so that the denoising
+reads as smooth motion.
 """
 
 from __future__ import annotations
@@ -18,14 +19,14 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import platform
 import statistics
-import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
+TARGET_FPS = 30.0  # K = 16 playing, software WebGL, a quiet machine
 
 
 @dataclass(frozen=True)
@@ -131,15 +132,17 @@ def main(argv: list[str] | None = None) -> None:
             f"{row.samples:>4} {row.animating_fps:>14.1f} {row.still_fps:>10.1f} "
             f"{row.states_per_second:>9.1f} {row.states:>7}"
         )
+    from ikdp.evaluation.machine import machine_description
+
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
     result = {
         "config": {key: str(value) if isinstance(value, Path) else value for key, value in asdict(config).items()},
         "rows": [asdict(row) for row in rows],
-        "machine": {"platform": platform.platform(), "python": sys.version.split()[0], "load_average": load},
+        "machine": {**machine_description(1), "load_average": load},
         "seconds": round(time.time() - started, 1),
         "median_of": config.repeats,
-        "target_fps_at_16": 15.0,
-        "met_at_16": bool(np.any([row.animating_fps >= 15.0 for row in rows if row.samples == 16])),
+        "target_fps_at_16": TARGET_FPS,
+        "met_at_16": bool(np.any([row.animating_fps >= TARGET_FPS for row in rows if row.samples == 16])),
     }
     config.output.parent.mkdir(parents=True, exist_ok=True)
     config.output.write_text(json.dumps(result, indent=2) + "\n")

@@ -98,12 +98,13 @@ class Page:
         return clients[0].camera  # the page's camera, as the page reports it
 
     def control(self, label: str, kind: str = "input"):
-        """The page's `kind` elements in the panel row labelled `label` (viser lays out a label and its inputs)."""
+        """The page's `kind` elements in the panel row labelled `label` (viser lays out a label and its inputs). A
+        label's element may hold <wbr> breaks: viser breaks a robot joint's name at its underscores."""
         marker = f"inv-{abs(hash((label, kind))) % 10**8}"
         found = self.page.evaluate(
             """([label, kind, marker]) => {
               const labels = [...document.querySelectorAll('label, p, span, div')]
-                .filter(e => e.childElementCount === 0 && e.textContent.trim() === label);
+                .filter(e => [...e.children].every(c => c.tagName === 'WBR') && e.textContent.trim() === label);
               for (const node of labels) {
                 let row = node.parentElement;
                 for (let up = 0; up < 4 && row; up++, row = row.parentElement) {
@@ -247,7 +248,7 @@ def change_seed(ui: Page, rng) -> str:
 def toggle_lock(ui: Page, rng, robot: bool) -> str:
     """Lock the first joint (the planar arm's at a random angle) or free it, in the Constraints folder."""
     find = """() => { const label = [...document.querySelectorAll('label, p, span, div')]
-        .find(e => e.childElementCount === 0 && e.textContent.trim().startsWith('lock '));
+        .find(e => [...e.children].every(c => c.tagName === 'WBR') && e.textContent.trim().startsWith('lock '));
         return label && label.checkVisibility() ? label.textContent.trim() : null; }"""
     if ui.page.evaluate(find) is None:
         ui.click("Constraints")  # the folder opens, drawn over a few frames
@@ -490,14 +491,6 @@ def shipped_model(model: str):
     return solver, shipped_checkpoint(model).parent
 
 
-# Sequences that meet a defect not fixed yet: (model, seed) -> the defect, in words. Each is a strict xfail, so the
-# sequence's pass after the fix flips it.
-KNOWN_DEFECTS: dict[tuple[str, int], str] = {
-    (ROBOT_MODEL, 2): "after 'compare with: ddim' (its legend and scene agree: the frame beside has its green swatch), "
-    "clicking the Constraints folder shows no 'lock ...' control within 10 s",
-}
-
-
 # Sequences that meet a defect in some runs only (it depends on what the page has drawn when a pause lands): not
 # strict, so a run that misses it passes, and the report still names each time it is met.
 INTERMITTENT_DEFECTS: dict[tuple[str, int], str] = {
@@ -507,8 +500,6 @@ INTERMITTENT_DEFECTS: dict[tuple[str, int], str] = {
 
 
 def sequence(model: str, seed: int):
-    if (model, seed) in KNOWN_DEFECTS:
-        return pytest.param(model, seed, marks=pytest.mark.xfail(strict=True, reason=KNOWN_DEFECTS[model, seed]))
     if (model, seed) in INTERMITTENT_DEFECTS:
         reason = INTERMITTENT_DEFECTS[model, seed]
         return pytest.param(model, seed, marks=pytest.mark.xfail(strict=False, reason=reason))
