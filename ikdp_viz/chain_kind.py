@@ -192,6 +192,7 @@ class ChainKind:
         # Off at start: near t = T the hands jump across the whole reach ball, and their paths cage the robots.
         panel.show_trail.value = False
         panel.joint_space.folder.visible = False  # the joint space view draws planar arms only
+        panel.teach.noise_it.visible = False  # the forward process is drawn for a planar arm's poses only
 
     def initial_target(self, solver, target=None) -> np.ndarray:
         """(target_dim,) `target` pulled into reach; the hands at mid-limits (surely reachable) when None."""

@@ -294,3 +294,9 @@ def test_a_robot_compares_two_samplers_from_the_same_noise(app):
     assert not nodes.shown
     center, reach = app.writer.view.center, app.writer.view.reach
     assert np.allclose(app.server.initial_camera.position, camera_fit_3d(center, reach)[0])
+
+
+def test_a_robot_offers_no_noise_it_button_which_would_do_nothing(app):
+    # the forward process is drawn for a planar arm's poses; a robot's button would do nothing when clicked
+    assert not app.panel.teach.noise_it.visible
+    assert app.noise_it() is None
