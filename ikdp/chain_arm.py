@@ -411,6 +411,11 @@ class ChainArm(JointLimits):
 
     def link_poses(self, joints) -> torch.Tensor:
         """(..., J) -> every link on the chain (`link_names`) as a 4x4 in the base frame, (..., L, 4, 4)."""
+        return self.link_poses_and_joint_frames(joints)[0]
+
+    def link_poses_and_joint_frames(self, joints) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """`link_poses`, with the joints' axis-aligned frames (..., J, 3, 3) and origins (..., J, 3) the same
+        kinematics pass made: what a sphere cover's depth and its gradient both read."""
         joints = self._as_joints(joints)
         axis_frames, origins, _, _ = self._joint_frames(joints)
         c = self._constants_like(joints)
@@ -421,7 +426,7 @@ class ChainArm(JointLimits):
         frames[..., 1:, :3, :3] = axis_frames @ c["bases"].transpose(-1, -2)  # R_j = F_j P_j^T
         frames[..., 1:, :3, 3] = origins + axis_frames[..., :, 2] * slides[..., None]
         frames[..., :, 3, 3] = 1
-        return frames[..., c["link_parents"], :, :] @ c["link_offsets"]
+        return frames[..., c["link_parents"], :, :] @ c["link_offsets"], axis_frames, origins
 
     def jacobian(self, joints) -> torch.Tensor:
         """(..., J) -> the geometric Jacobian, (..., 3, J) for position targets, (..., 6, J) for poses.

@@ -103,16 +103,17 @@ class BoundSelfCollision(BoundConstraint):
         distance = torch.cdist(centers[:, constants["first"]], centers[:, constants["second"]])
         return torch.relu(constants["reach"] + clearance - distance), distance
 
-    def _world_centers(self, joints: torch.Tensor) -> torch.Tensor:
-        """joints (M, J) -> the sphere centres in the base frame (M, S, 3): LinkSpheres.world_centers, its
-        constants made once."""
+    def _world_centers(self, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """joints (M, J) -> the sphere centres in the base frame (M, S, 3) (LinkSpheres.world_centers, its
+        constants made once), and the joints' world axes and origins (M, J, 3) from the same kinematics pass."""
         constants = self._constants(joints)
-        poses = self.arm.link_poses(joints)[:, constants["links"]]  # (M, S, 4, 4)
-        return (poses[..., :3, :3] @ constants["centers"][..., None])[..., 0] + poses[..., :3, 3]
+        poses, axes, origins = self.arm.link_poses_and_joint_axes(joints)
+        poses = poses[:, constants["links"]]  # (M, S, 4, 4)
+        return (poses[..., :3, :3] @ constants["centers"][..., None])[..., 0] + poses[..., :3, 3], axes, origins
 
     def penetration(self, joints: torch.Tensor, clearance: float = 0.0) -> torch.Tensor:
         """joints (M, J) -> (M,) the summed overlap of the checked sphere pairs, + `clearance`."""
-        return self._overlaps(self._world_centers(joints), clearance)[0].sum(dim=(-1, -2))
+        return self._overlaps(self._world_centers(joints)[0], clearance)[0].sum(dim=(-1, -2))
 
     def penetration_and_gradient(self, joints: torch.Tensor, clearance: float) -> tuple[torch.Tensor, torch.Tensor]:
         """(M,) overlap and its gradient (M, J) in closed form, as a chain's obstacle depth (ikdp/obstacles.py).
@@ -122,9 +123,13 @@ class BoundSelfCollision(BoundConstraint):
         o_j x sum_s g_s), the sums over the spheres j moves; a prismatic one slides it: a_j . sum_s g_s.
         (Autograd through the pair distances took several times longer.)
         """
-        constants = self._constants(joints)
-        centers = self._world_centers(joints)  # (M, S, 3)
+        centers, axes, origins = self._world_centers(joints)
         overlap, distance = self._overlaps(centers, clearance)
+        return overlap.sum(dim=(-1, -2)), self._gradient(centers, axes, origins, overlap, distance)
+
+    def _gradient(self, centers, axes, origins, overlap, distance) -> torch.Tensor:
+        """`penetration_and_gradient`'s gradient (M, J) from its kinematics and overlaps."""
+        constants = self._constants(centers)
         weights = torch.where(overlap > 0, distance.clamp_min(1e-12).reciprocal(), 0.0)  # (M, F, T)
         first, second = centers[:, constants["first"]], centers[:, constants["second"]]
         # g = -sum w (c_s - c_other) for each sphere of a pair, as products rather than (M, F, T, 3) differences
@@ -137,23 +142,23 @@ class BoundSelfCollision(BoundConstraint):
         moving = constants["moving"]  # (S, J)
         pulled = torch.einsum("msk,sj->mjk", per_sphere, moving)  # (M, J, 3) sum_s g_s
         turned = torch.einsum("msk,sj->mjk", torch.linalg.cross(centers, per_sphere, dim=-1), moving)
-        axes, origins = self.arm.joint_axes_and_origins(joints)  # (M, J, 3) each
         lever = torch.where(
             constants["revolute"][:, None], turned - torch.linalg.cross(origins, pulled, dim=-1), pulled
         )
-        gradient = (axes * lever).sum(dim=-1)
-        return overlap.sum(dim=(-1, -2)), gradient
+        return (axes * lever).sum(dim=-1)
 
     def guide(self, joints):
         """The obstacles' clearing step (ikdp.obstacles.clearing_step), worked out only for the rows that overlap:
-        a quarter to a half of a solve's x̂0, and the gradient costs more than finding them."""
-        depth = self.penetration(joints, self.clearance)
+        a quarter to a half of a solve's x̂0, and the gradient costs more than finding them. One kinematics pass
+        serves both."""
+        centers, axes, origins = self._world_centers(joints)
+        overlap, distance = self._overlaps(centers, self.clearance)
+        depth = overlap.sum(dim=(-1, -2))
         rows = torch.nonzero(depth > 0)[:, 0]
         step = torch.zeros_like(joints)
         if len(rows):
-            overlapping = joints[rows]
-            depth, gradient = self.penetration_and_gradient(overlapping, self.clearance)
-            step[rows] = clearing_step(self.arm, overlapping, depth, gradient, self.weight)
+            gradient = self._gradient(centers[rows], axes[rows], origins[rows], overlap[rows], distance[rows])
+            step[rows] = clearing_step(self.arm, joints[rows], depth[rows], gradient, self.weight)
         return step
 
     def penetration_rows(self, joints):

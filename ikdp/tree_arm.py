@@ -248,14 +248,25 @@ class TreeArm(JointLimits):
 
     def link_poses(self, joints) -> torch.Tensor:
         """(..., J) -> every link of `link_names` as a 4x4 in the base frame, (..., L, 4, 4)."""
-        parts = self._chain_joints(self._as_joints(joints))
+        return self.link_poses_and_joint_axes(joints)[0]
+
+    def link_poses_and_joint_axes(self, joints) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """`link_poses`, and every joint's world axis (..., J, 3) and origin (..., J, 3) after its motion, from one
+        kinematics pass per chain: a self-collision check's depth and gradient read both."""
+        joints = self._as_joints(joints)
         poses, seen = [], set()
-        for chain, part in zip(self.chains, parts, strict=True):
-            mine = chain.link_poses(part)
-            keep = [index for index, name in enumerate(chain.link_names) if name not in seen]
+        axes = joints.new_zeros(*joints.shape, 3)
+        origins = joints.new_zeros(*joints.shape, 3)
+        for chain, part, index in zip(
+            self.chains, self._chain_joints(joints), self._constants_like(joints)["indices"], strict=True
+        ):
+            mine, frames, chain_origins = chain.link_poses_and_joint_frames(part)
+            keep = [number for number, name in enumerate(chain.link_names) if name not in seen]
             seen.update(chain.link_names)
             poses.append(mine[..., keep, :, :])
-        return torch.cat(poses, dim=-3)
+            axes[..., index, :] = frames[..., :, 2]  # a shared joint sits alike on every chain
+            origins[..., index, :] = chain_origins
+        return torch.cat(poses, dim=-3), axes, origins
 
     def task_error_and_jacobian(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The stacked task error (..., 6E) or (..., 3E) and its Jacobian (..., 6E or 3E, J): every position row,
@@ -314,20 +325,6 @@ class TreeArm(JointLimits):
         if self.target == "position":
             return position, None
         return position, torch.stack([rotation for _, rotation in pairs], dim=-1)
-
-    def joint_axes_and_origins(self, joints) -> tuple[torch.Tensor, torch.Tensor]:
-        """(..., J) -> every joint's world axis (..., J, 3) and origin (..., J, 3) after its motion, each from the
-        first chain it lies on (a shared joint sits alike in all)."""
-        joints = self._as_joints(joints)
-        axes = joints.new_zeros(*joints.shape, 3)
-        origins = joints.new_zeros(*joints.shape, 3)
-        for chain, part, index in zip(
-            self.chains, self._chain_joints(joints), self._constants_like(joints)["indices"], strict=True
-        ):
-            frames, chain_origins, _, _ = chain._joint_frames(part)
-            axes[..., index, :] = frames[..., :, 2]
-            origins[..., index, :] = chain_origins
-        return axes, origins
 
     def joints_moving(self, link_indices) -> torch.Tensor:
         """(S,) indices into `link_names` -> (S, J) True where the joint moves that link (it lies on the link's
