@@ -77,6 +77,10 @@ class BoundConstraint:
         """joints (M, J) -> a correction to add (M, J), or None: no guidance."""
         return None
 
+    def guides_at(self, fraction: float) -> bool:
+        """Whether `guide` acts on the x̂0 of a step at diffusion time t = fraction * T (1: pure noise)."""
+        return True
+
     def penetration_rows(self, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
         """joints (M, J) -> depths (M, P) refinement brings to zero, second to the target, their gradients (M, P, J).
 

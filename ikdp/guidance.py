@@ -128,7 +128,10 @@ class SamplingGuidance:
         if not self.active:
             return
         joints = self.representation.decode(clean)  # (M, J)
+        fraction = self.sampler.timesteps[index] / self.sampler.schedule.num_timesteps
         for item in self.constraints.others:
+            if not item.guides_at(fraction):
+                continue
             step = item.guide(joints)
             if step is not None:
                 joints = joints + step.to(joints)

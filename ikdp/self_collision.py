@@ -22,6 +22,10 @@ from ikdp.constraint_base import BoundConstraint, Constraint
 from ikdp.obstacles import clearing_step
 
 DEFAULT_CLEARANCE = 0.005  # fraction of the tree's span guidance aims beyond contact (refinement: half)
+# Guidance acts on the x̂0 of the steps at t < GUIDED_SHARE * T: before, x̂0 is too blurred for its overlaps to say
+# where the pose will land. On the G1 (100 collision-free targets, K = 16 + 5 DLS) the last half kept the returned
+# poses' overlap at 9.4 % against 9.1 % with every step, the same 99 % solved apart, in 0.75x the time.
+GUIDED_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -32,6 +36,7 @@ class SelfCollision(Constraint):
     enabled: bool = True  # False: no self-collision check, even where the links can meet
     clearance: float | None = None  # the gap guidance aims for; None: DEFAULT_CLEARANCE of the tree's span
     weight: float = 1.0  # per step, the share of the overlap removed from x̂0
+    guided_share: float = GUIDED_SHARE  # guidance on the steps at t < guided_share * T (1: every step)
     held_joints: Mapping[str, float] | None = None  # joints off every chain (fingers), as ikdp.Obstacles takes them
     name: ClassVar[str] = "self_collision"
 
@@ -40,13 +45,15 @@ class SelfCollision(Constraint):
             raise ValueError(f"self_collision: keeps the branches of a tree apart; {arm!r} has one chain")
         if not 0 <= self.weight <= 1:
             raise ValueError(f"self_collision: weight expected in [0, 1], got {self.weight}")
+        if not 0 <= self.guided_share <= 1:
+            raise ValueError(f"self_collision: guided_share expected in [0, 1], got {self.guided_share}")
         if self.clearance is not None and self.clearance < 0:
             raise ValueError(f"self_collision: clearance expected >= 0 metres, got {self.clearance}")
         from ikdp.tree_spheres import meeting_pairs, tree_link_spheres
 
         spheres = tree_link_spheres(arm, self.held_joints)
         clearance = DEFAULT_CLEARANCE * arm.span if self.clearance is None else float(self.clearance)
-        return BoundSelfCollision(arm, spheres, meeting_pairs(arm, spheres), clearance, self.weight)
+        return BoundSelfCollision(arm, spheres, meeting_pairs(arm, spheres), clearance, self.weight, self.guided_share)
 
 
 def with_self_collision(arm, constraints) -> list[Constraint]:
@@ -66,6 +73,7 @@ class BoundSelfCollision(BoundConstraint):
     pairs: torch.Tensor  # (P, 2) the sphere pairs that can meet
     clearance: float
     weight: float
+    guided_share: float = GUIDED_SHARE
 
     def __post_init__(self):
         # the pairs as a block: the spheres that come first in some pair against those that come second (27 x 68
@@ -146,6 +154,9 @@ class BoundSelfCollision(BoundConstraint):
             constants["revolute"][:, None], turned - torch.linalg.cross(origins, pulled, dim=-1), pulled
         )
         return (axes * lever).sum(dim=-1)
+
+    def guides_at(self, fraction: float) -> bool:
+        return fraction < self.guided_share
 
     def guide(self, joints):
         """The obstacles' clearing step (ikdp.obstacles.clearing_step), worked out only for the rows that overlap:

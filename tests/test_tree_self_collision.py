@@ -87,6 +87,17 @@ def test_solve_keeps_the_branches_apart_by_default_and_can_be_told_not_to(bodies
     assert bool(reached.any(-1).all())  # every target: a pose apart with the right hand on it
 
 
+def test_self_collision_guides_only_the_late_steps_it_is_given(bodies):
+    """Guidance acts on the x̂0 of the steps at t < guided_share * T: before, the estimate is too blurred to clear."""
+    late = ikdp.SelfCollision().bind(bodies, 1, 1)
+    assert late.guides_at(0.2) and not late.guides_at(0.8)
+    every = ikdp.SelfCollision(guided_share=1.0).bind(bodies, 1, 1)
+    assert every.guides_at(0.99)
+    assert not any(ikdp.SelfCollision(guided_share=0.0).bind(bodies, 1, 1).guides_at(f) for f in (0.0, 0.5))
+    with pytest.raises(ValueError, match="guided_share expected in \\[0, 1\\], got 1.5"):
+        ikdp.SelfCollision(guided_share=1.5).bind(bodies, 1, 1)
+
+
 def test_obstacles_act_on_every_moving_link_of_a_tree(bodies):
     solver = untrained_solver(bodies)
     joints = torch.tensor([[0.0, 1.0, 0.0, -1.0, 0.0]])
