@@ -77,6 +77,15 @@ class PlanarArm:
     num_links = num_joints
 
     @property
+    def continuous_joints(self) -> torch.Tensor:
+        """(N,) bool: every heading wraps at +-pi, as a robot's continuous joints do."""
+        return torch.ones(self.num_joints, dtype=torch.bool)
+
+    def limit_violations(self, headings: torch.Tensor, *, tolerance: float = 1e-6) -> torch.Tensor:
+        """(..., N) -> (...,) 0: a heading has no limits to leave."""
+        return torch.zeros(headings.shape[:-1], dtype=torch.long, device=headings.device)
+
+    @property
     def reach(self) -> tuple[float, float]:
         """(inner, outer) radius of the annulus the tip can reach."""
         return reach(self.lengths)

@@ -22,10 +22,7 @@ from ikdp.kinematics import wrap_angle
 def joint_difference(arm, joints: torch.Tensor, reference: torch.Tensor) -> torch.Tensor:
     """joints - reference (..., J), the short way round for headings and continuous joints."""
     difference = joints - reference
-    if arm.kind == "planar":
-        return wrap_angle(difference)
-    continuous = torch.tensor([kind == "continuous" for kind in arm.joint_types], device=joints.device)
-    return torch.where(continuous, wrap_angle(difference), difference)
+    return torch.where(arm.continuous_joints.to(joints.device), wrap_angle(difference), difference)
 
 
 def joint_index(arm, key) -> int:

@@ -100,7 +100,7 @@ class NearPose(Constraint):
             )
         if not 0 <= self.weight <= 1:
             raise ValueError(f"near_pose: weight expected in [0, 1], got {self.weight}")
-        if arm.kind != "planar" and int(arm.limit_violations(pose, tolerance=1e-6).sum()):
+        if int(arm.limit_violations(pose, tolerance=1e-6).sum()):
             raise ValueError(f"near_pose: pose {pose.tolist()} is outside the joint limits")
         return BoundNearPose(arm, per_row(pose, batch, num_samples, 1, "near_pose: pose").float(), self.weight)
 
