@@ -2,7 +2,7 @@
 hand, or a tree's several: one pose per end effector).
 
 The session, the solve, the drawing loop and the recording ask `arm_kind(solver)` (the arm's
-maths, texts, colours and legend: planar_kind.py, chain_kind.py's ChainKind and TreeKind) and `arm_view_class(solver)`
+maths, texts, colours and legend: planar_kind.py, chain_kind.py's ChainKind and TreeKind) and `arm_view(...)`
 (its scene nodes: planar_view.py, robot_view.py) instead of testing the arm's type.
 
 A new kind of arm (its solver's `arm.kind` a new word) is one entry in `ARM_KINDS` and one branch in each
@@ -43,15 +43,16 @@ def arm_kind(solver) -> PlanarKind | ChainKind:
     return ARM_KINDS[kind]
 
 
-def arm_view_class(solver):
-    """The class whose object owns `solver`'s arm's scene nodes (imported here: the kinds need no viser)."""
-    if arm_kind(solver).name == "planar":
+def arm_view(server, solver, target, gizmo_update):
+    """The object that owns `solver`'s arm's scene nodes (its class imported here: the kinds need no viser)."""
+    kind = arm_kind(solver)
+    if kind.name == "planar":
         from ikdp_viz.planar_view import PlanarView
 
-        return PlanarView
+        return PlanarView(server, solver, target, gizmo_update)
     from ikdp_viz.robot_view import RobotView
 
-    return RobotView
+    return RobotView(server, solver, target, gizmo_update, kind)
 
 
 def compare_view_class(solver):

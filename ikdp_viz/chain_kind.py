@@ -236,7 +236,7 @@ class ChainKind:
     def drawable(self, result, solver, target, partial=None) -> tuple[chain_scene.ChainView, np.ndarray]:
         """A solve's view and its trail: the K hands' paths, (S+1, K, 2, 3). `partial`: the solve's partial
         target (ikdp.PositionOnly or FreeAxis), whose residual the errors then measure; None: the full pose."""
-        view = chain_scene.build_chain_view(result, solver.arm, target, partial=partial, kind=self)
+        view = chain_scene.build_chain_view(result, solver.arm, target, self, partial=partial)
         return view, chain_scene.hand_paths(view.points, view.hand_indices)
 
     def model_text(self, solver) -> str:

@@ -225,16 +225,12 @@ def rotation_measure(partial) -> str:
     return "axis ({:.2f}, {:.2f}, {:.2f})".format(*axis)
 
 
-def build_chain_view(result: SolveResult, arm, target, partial=None, kind=None) -> ChainView:
+def build_chain_view(result: SolveResult, arm, target, kind, partial=None) -> ChainView:
     """The drawable arrays of the first target of a chain `solver.solve(..., return_trajectory=True)` result.
 
     `partial` (ikdp.PositionOnly or FreeAxis, the solve's partial target): the rotation errors measure its
     residual, nothing for position only, the free axis's angle for a free axis. `kind`: the arm kind
-    (chain_kind.ChainKind or TreeKind) that names the end effectors and measures each one's errors; None: a chain's."""
-    if kind is None:
-        from ikdp_viz.chain_kind import ChainKind  # here: chain_kind builds its views with this module
-
-        kind = ChainKind()
+    (chain_kind.ChainKind or TreeKind) that names the end effectors and measures each one's errors."""
     if result.trajectory is None:
         raise ValueError("result: solve with return_trajectory=True, the viewer draws every state")
     target = np.asarray(target, dtype=np.float64).reshape(-1)

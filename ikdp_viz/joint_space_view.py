@@ -16,7 +16,7 @@ import numpy as np
 import viser
 
 import ikdp
-from ikdp_viz.arm_kinds import arm_kind, arm_view_class, compare_view_class
+from ikdp_viz.arm_kinds import arm_kind, arm_view, compare_view_class
 from ikdp_viz.camera import Extent, camera_over, fit_fields_of_view, move_cameras
 from ikdp_viz.joint_space import FieldCache, JointSpaceControls, two_link_solutions, wrap_to_square
 from ikdp_viz.readouts import branch_name, held_text, joint_space_title
@@ -326,7 +326,7 @@ class Stage:
         # No shadow maps: nothing here casts one, and software WebGL drew the empty page at 16-26 frames/s with
         # them, 27-29 without
         server.scene.configure_default_lights(cast_shadow=False)
-        self.view = arm_view_class(solver)(server, solver, target, gizmo_update)
+        self.view = arm_view(server, solver, target, gizmo_update)
         self.joint_space = JointSpaceNodes(server, panel.joint_space)  # the torus beside a planar arm
         self.joint_space.clear_of = getattr(self.view, "grid_half_width", None)  # beside the grid, not on it
         self.compare = compare_view_class(solver)(server)  # a second sampler from the same noise, beside the arm

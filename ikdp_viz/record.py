@@ -60,7 +60,7 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
     """
     import viser
 
-    from ikdp_viz.arm_kinds import arm_kind, arm_view_class
+    from ikdp_viz.arm_kinds import arm_kind, arm_view
     from ikdp_viz.camera import camera_over, move_cameras
     from ikdp_viz.frame import Palettes, build_frame, solve_noise_levels
 
@@ -73,11 +73,11 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
     try:
         server.scene.configure_environment_map(hdri=None)
         server.scene.configure_default_lights(cast_shadow=False)
-        arm_view = arm_view_class(solver)(server, solver, solved.request.target, lambda _: None)
-        camera = arm_view.camera() or camera_over([arm_view.extent()])
+        nodes = arm_view(server, solver, solved.request.target, lambda _: None)
+        camera = nodes.camera() or camera_over([nodes.extent()])
         move_cameras(server, tuple(tuple(float(value) for value in part) for part in camera))  # recorded
-        arm_view.aim_cross(np.asarray(camera[0], dtype=np.float64))
-        arm_view.hide_target_controls()
+        nodes.aim_cross(np.asarray(camera[0], dtype=np.float64))
+        nodes.hide_target_controls()
         serializer = server.get_scene_serializer()
         palettes = Palettes()
         frames = [build_frame(kind, solved, state, settings, palettes=palettes, animating_to=None)
@@ -85,12 +85,12 @@ def record_html(solved, settings: ViewSettings | None = None) -> str:
         sigmas = solve_noise_levels(solver, view)
         offsets = state_offsets(sigmas, settings.clock, settings.seconds)
         words = kind.target_words(solved.request.target, solver.arm)
-        arm_view.update(frames[0])
+        nodes.update(frames[0])
         label = server.scene.add_label("/recording/step", step_text(frames[0], words),
-                                       position=label_position(arm_view), anchor="top-center")  # fmt: skip
+                                       position=label_position(nodes), anchor="top-center")  # fmt: skip
         for state in range(1, view.num_states):
             serializer.insert_sleep(float(max(offsets[state] - offsets[state - 1], SHORTEST_STATE)))
-            arm_view.update(frames[state])
+            nodes.update(frames[state])
             label.text = step_text(frames[state], words)
         serializer.insert_sleep(HOLD_FINAL)
         return with_legend(serializer.as_html(), frames[-1].legend)

@@ -22,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.camera import camera_fit_3d
 from ikdp_viz.chain_kind import VIOLATING_GHOST_OPACITY, ghost_opacities
 from ikdp_viz.chain_scene import mesh_poses, skeleton_segments
@@ -45,8 +44,10 @@ def grid_cell(reach: float) -> float:
 class RobotView:
     """A robot's nodes: the floor grid and the target's gizmo, the K robots, skeletons and hand of the frame shown."""
 
-    def __init__(self, server: viser.ViserServer, solver, target: np.ndarray, gizmo_update):
-        self.server, self._gizmo_update = server, gizmo_update
+    def __init__(self, server: viser.ViserServer, solver, target: np.ndarray, gizmo_update, kind):
+        """`kind`: the arm kind (chain_kind.ChainKind or TreeKind) whose hands, polylines and meshes it draws; the
+        same for every model this view rebuilds for (a viewer keeps its kind of arm)."""
+        self.server, self._gizmo_update, self.kind = server, gizmo_update, kind
         self.ghosts: list = []  # one batched mesh node per robot mesh, K instances
         self.robot: list = []  # the highlighted sample: one opaque mesh node per robot mesh
         self.trail = self.skeletons = self.estimate_lines = self.refined_lines = None
@@ -64,7 +65,7 @@ class RobotView:
         start_rebuild(self, solver, target)
         scene = self.server.scene
         arm = solver.arm
-        self.kind = kind = arm_kind(solver)
+        kind = self.kind
         self.polylines = kind.polylines(arm)
         self.robot_meshes = robot_meshes(arm, chains=kind.mesh_chains(arm))
         self.mesh_links = np.array([mesh.link_index for mesh in self.robot_meshes], dtype=np.int64)

@@ -14,7 +14,6 @@ import random
 import threading
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -38,9 +37,6 @@ from ikdp_viz.student import (
     student_sampling,
     target_title,
 )
-
-if TYPE_CHECKING:
-    from ikdp_viz.panel import Panel
 
 NEAR_POSE = "near_pose"  # the pull toward the last pose (ikdp.NearPose)
 PREVIEW_SAMPLER = ("dpmpp2m", 5)  # the fast solve a robot's drag shows first: 5 steps, about 40 ms here
@@ -322,7 +318,7 @@ class Session:
 
     def request(
         self,
-        panel: Panel,
+        panel,  # the viewer's Panel (panel.py), read for its sampling settings
         *,
         arrival: float | None = None,
         animate: bool = True,
@@ -366,7 +362,7 @@ class Session:
             raise ValueError(f"sampler: expected one of {tuple(SAMPLERS)}, got {choice!r}")
         return self.solver, choice, steps if SAMPLERS[choice].supports_steps else None
 
-    def compare_settings(self, panel: Panel, choice: str, chosen_steps: int | None = None) -> dict:
+    def compare_settings(self, panel, choice: str, chosen_steps: int | None = None) -> dict:
         """The comparison the panel asks for: another sampler (or the student, or from it the teacher) from the
         same x_T, unless it is the sampler itself."""
         other = str(panel.learn.compare.value)

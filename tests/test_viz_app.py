@@ -378,7 +378,10 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
     entered, release = threading.Event(), threading.Event()
     real_solve = solver.solve
 
+    asked = []  # the targets each solve that ran was given
+
     def slow_solve(targets, **options):
+        asked.append(np.asarray(targets, dtype=np.float64).reshape(-1)[:2].round(3).tolist())
         if not entered.is_set():
             entered.set()
             assert release.wait(30)
@@ -398,8 +401,10 @@ def test_the_newest_target_wins_and_the_server_keeps_answering_during_a_solve(ap
     release.set()
     settle(app)
     assert np.allclose(app.solved.view.target, [-1.2, 0.4])
-    # (0, 1.5) never ran; (1, 1) stopped at its first denoising step once released; only the newest was drawn
-    assert (stats.replaced - before[0], stats.cancelled - before[1], stats.delivered - before[2]) == (1, 1, 1)
+    # (0, 1.5) never ran (replaced in the worker's queue, or by the newer target before the loop submitted it);
+    # (1, 1) stopped at its first denoising step once released; only the newest was drawn
+    assert [0.0, 1.5] not in asked and asked[0] == [1.0, 1.0] and asked[-1] == [-1.2, 0.4], asked
+    assert (stats.cancelled - before[1], stats.delivered - before[2]) == (1, 1)
 
 
 class CancelAfter(threading.Event):

@@ -41,7 +41,7 @@ def view(solver):
         target[None], num_samples=K, return_trajectory=True, return_estimates=True,
         generator=torch.Generator().manual_seed(0),
     )  # fmt: skip
-    return build_chain_view(result, solver.arm, target)
+    return build_chain_view(result, solver.arm, target, ChainKind())
 
 
 def test_the_view_holds_every_state_of_every_sample(view, solver):
