@@ -184,9 +184,10 @@ class ChainFiLMDenoiser(nn.Module):
         features, step = self.features_and_step(x, target)
         scaled = grouped(features) * feature_scale[..., : self.input.in_features]
         output = None
-        if self.condition_table is not None and self.int8 is None and not torch.is_grad_enabled():
-            # a few targets' condition came from the table: its trunk, with the weights laid out for it
-            output = self.condition_table.trunk(self, scaled.view_as(features), condition, targets)
+        table = self.condition_table
+        if table is not None and self.int8 is None and not torch.is_grad_enabled() and small_batch(len(x), x.device):
+            # a few rows (one target's K on a CPU), as the condition's table: the trunk with its weights laid out
+            output = table.trunk(self, scaled.view_as(features), condition, targets)
         if output is None:
             h = film_residual_pass(self.input(scaled), condition, self.norms, self.trunk_layers())
             output = self.output(nn.functional.silu(h))
