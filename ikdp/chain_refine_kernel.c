@@ -233,6 +233,7 @@ EXPORT int ikdp_chain_refine(const Chain *chain, int rows, double *joints, const
     const int count = chain->joints, parts = chain->pose_targets ? 2 : 1, size = 3 * parts;
     const int width = chain->pose_targets ? 7 : 3;
     if (count > MAX_JOINTS || count < 1) return -1;
+    if (rows < 1) return 0; /* nothing to refine (and malloc(0) may answer NULL) */
     double *rotations = malloc(sizeof(double) * (size_t)rows * 9);
     double *norms = malloc(sizeof(double) * (size_t)rows * 2);
     double *errors = malloc(sizeof(double) * (size_t)rows * 6);

@@ -97,6 +97,8 @@ def test_the_callers_joints_are_left_alone(kernel):
     before = joints.clone()
     compiled.refine_scored(joints, targets, 3, 1e-3, 0.2)
     assert torch.equal(joints, before)
+    nothing, scores = compiled.refine_scored(joints[:0], targets[:0], 3, 1e-3, 0.2, scored=True)
+    assert nothing.shape == (0, arm.num_joints) and scores.position.shape == (0,)
 
 
 def test_without_the_kernel_numpys_loop_runs(monkeypatch, caplog):
