@@ -2,7 +2,7 @@
 
 Why: one target's K = 16 poses make arrays of a few hundred numbers, and NumPy's loop (ikdp/small_refine.py) spends
 its time on the fixed cost of some sixty operations a step: on one Xeon thread a Panda solve's refinement took a
-third of its 2 ms and the network's kinematic feature a tenth. The C file does the same arithmetic pose by pose in
+third of its 2 ms and the network's kinematic feature a seventh. The C file does the same arithmetic pose by pose in
 one call. It is built like the planar FiLM kernel (ikdp/denoisers/film_compiled.py: the system's C compiler, on
 first use, into ikdp's cache folder, for this CPU where the compiler can); without it (IKDP_COMPILED=0, no
 compiler, a failed build) NumPy's loop runs, the same numbers to rounding (tests/test_compiled_chain.py), and the
