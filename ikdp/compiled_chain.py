@@ -64,7 +64,7 @@ def load_kernel() -> ctypes.CDLL | None:
             _tried = True
             from ikdp.denoisers import film_compiled  # the build machinery the two C files share
 
-            _library, reason = film_compiled._load(SOURCE, open_library)
+            _library, reason = film_compiled.built_library(SOURCE, open_library)
             if _library is None:
                 level = logging.INFO if reason == "IKDP_COMPILED=0" else logging.WARNING
                 logger.log(level, "ikdp: a few poses' refinement runs in NumPy (%s), several times slower", reason)

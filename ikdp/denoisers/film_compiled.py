@@ -143,7 +143,7 @@ def _failure(error: Exception) -> str:
     return next((line for line in lines if "error" in line.lower()), lines[0] if lines else type(error).__name__)
 
 
-def _load(source: Path = SOURCE, opener=None) -> tuple[ctypes.CDLL | None, str]:
+def built_library(source: Path = SOURCE, opener=None) -> tuple[ctypes.CDLL | None, str]:
     """The kernel built from `source` and opened by `opener` (which sets its functions' signatures; None:
     film_kernel.c's `open_library`), or None and why not."""
     if os.environ.get("IKDP_COMPILED", "1") == "0":
@@ -169,7 +169,7 @@ def load_kernel() -> ctypes.CDLL | None:
     with _lock:
         if not _tried:
             _tried = True
-            _library, reason = _load()
+            _library, reason = built_library()
             if _library is None:  # switched off by the user: only a note; otherwise the user may want to fix it
                 level = logging.INFO if reason == "IKDP_COMPILED=0" else logging.WARNING
                 logger.log(level, "ikdp: the planar FiLM step runs in torch (%s), %s", reason, SLOWER)
