@@ -19,6 +19,13 @@ def drawing_device(generator: torch.Generator | None) -> torch.device:
 FEW_ROWS = 16  # targets at most that a check reads through NumPy on a CPU, where torch's per-operation cost dominates
 
 
+def few_rows_on_cpu(targets: torch.Tensor) -> bool:
+    """Whether targets (B, target_dim) are few enough, on the CPU and without gradients, to be read through NumPy."""
+    return (
+        targets.device.type == "cpu" and targets.dim() == 2 and len(targets) <= FEW_ROWS and not targets.requires_grad
+    )
+
+
 def validate_target_rows(targets, target_dim: int) -> torch.Tensor:
     """Array-like (B, target_dim) -> float32 tensor; ValueError naming the problem otherwise.
 

@@ -24,6 +24,7 @@ whose operations each cover the whole batch, is the faster of the two.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from ikdp.refine import RefineTask, damped_least_squares, dls_step
@@ -272,6 +273,14 @@ class FusedChain:
         if arm.target == "position":
             return arm.target_features(targets)
         rows = targets.reshape(-1, targets.shape[-1])
+        if rows.device.type == "cpu" and not rows.requires_grad:  # the same operations in NumPy: a third of the time
+            c = self._constants_like(rows)
+            values = rows.numpy()
+            quaternion = values[:, 3:7] / np.sqrt(np.square(values[:, 3:7]).sum(axis=-1, keepdims=True))
+            outer = (quaternion[:, :, None] * quaternion[:, None, :]).reshape(-1, 16)
+            rotation = (outer @ c["quadratic"].numpy() + c["identity9"].numpy()).reshape(-1, 3, 3)
+            features = np.concatenate((values[:, :3] / arm.span, rotation[:, :, 0], rotation[:, :, 1]), axis=-1)
+            return torch.from_numpy(features).reshape(*targets.shape[:-1], -1)
         rotation = self._target_rotations(rows)
         features = torch.cat((rows[:, :3] / arm.span, rotation[:, :, 0], rotation[:, :, 1]), dim=-1)
         return features.reshape(*targets.shape[:-1], -1)

@@ -64,7 +64,9 @@ def step_conditions(denoiser, timesteps, targets: torch.Tensor, num_samples: int
     t_all = torch.as_tensor(timesteps, device=targets.device)
     per_target = None
     if len(timesteps) * batch <= FEW_CONDITIONS:  # computed at once, then sized: no call to size them first
-        per_target = denoiser.condition(t_all.repeat_interleave(batch), targets.repeat(len(timesteps), 1))
+        # one target or one step needs no copy (each a few microseconds of a one-target solve)
+        times = t_all.repeat_interleave(batch) if batch > 1 else t_all
+        per_target = denoiser.condition(times, targets.repeat(len(timesteps), 1) if len(timesteps) > 1 else targets)
         per_row = per_target[0].numel()
     else:
         per_row = denoiser.condition(t_all[:1], targets[:1]).numel()

@@ -7,6 +7,11 @@ a fraction of torch's on one CPU thread (one Xeon thread: an element-wise operat
 of small matrix products 5 against 12, a batched 6 x 6 solve 18 against 34, a concatenation 1.5 against 24):
 the refinement is most of a one-target solve's time after the network. Tests hold its poses to the general
 loop's.
+
+Where a C compiler builds ikdp/chain_refine_kernel.c (ikdp/compiled_chain.py), the loop and the denoiser's
+error-and-step feature run there instead, pose by pose in one call each, the same numbers to rounding: a fifth of
+the loop's time on a Panda target's 16 poses. This NumPy loop is the fallback, and the reference the kernel is
+tested against.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+
+from ikdp.compiled_chain import CompiledChain, compiled_chain
 
 
 def norm(vectors: np.ndarray) -> np.ndarray:
@@ -43,6 +50,13 @@ class SmallRefine:
         self.span = span
         self.pose_targets = pose_targets
         self.eye = np.eye(6 if pose_targets else 3)
+        self._compiled: CompiledChain | None | bool = False  # False: not asked for yet; None: NumPy's loop runs
+
+    def compiled(self) -> CompiledChain | None:
+        """The loop and the feature as compiled C (ikdp/compiled_chain.py), built once; None where it cannot be."""
+        if self._compiled is False:
+            self._compiled = compiled_chain(self)
+        return self._compiled
 
     # --- kinematics, as FusedChain's kernels ---------------------------------------------------
     def frames(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -136,9 +150,13 @@ class SmallRefine:
         (N, J), computed in float64, returned in the rows' dtype: what the robot denoiser reads as features."""
         joints = rows.detach().double().numpy()
         goals = targets.detach().double().numpy()
-        frames, end = self.frames(joints)
-        error = self.task_error(end, goals, self.target_rotations(goals) if self.pose_targets else None)
-        step = self.dls(self.jacobian(joints, frames, end), error, damping_squared)
+        compiled = self.compiled()
+        if compiled is not None:
+            error, step = compiled.error_and_step(joints, goals, damping_squared)
+        else:
+            frames, end = self.frames(joints)
+            error = self.task_error(end, goals, self.target_rotations(goals) if self.pose_targets else None)
+            step = self.dls(self.jacobian(joints, frames, end), error, damping_squared)
         return torch.from_numpy(error).to(rows.dtype), torch.from_numpy(step).to(rows.dtype)
 
     # --- the loop --------------------------------------------------------------------------------
@@ -169,9 +187,23 @@ class SmallRefine:
         position error and the rotation angle); the scores are then those of the poses before rounding."""
         joints = rows.detach().double().numpy()
         goals = targets.detach().double().numpy()
+        damping_squared = damping**2
+        compiled = self.compiled() if output_dtype in (torch.float64, torch.float32) else None  # C rounds to these
+        if compiled is not None:
+            limits = (max_miss_fraction * self.span, np.pi / 4)
+            rounded = output_dtype == torch.float32
+            refined, scores = compiled.refine(
+                joints, goals, steps, damping_squared, limits, until_within, scored, rounded
+            )
+            if not scored:
+                return torch.from_numpy(refined), None
+            scores = torch.from_numpy(scores)
+            rotation = scores[1] if self.pose_targets else None
+            return torch.from_numpy(refined), RefineScores(
+                position=scores[0], rotation=rotation, first_position=scores[2]
+            )
         rotations = self.target_rotations(goals) if self.pose_targets else None
         limits = np.array([max_miss_fraction * self.span, np.pi / 4])[: 2 if self.pose_targets else 1, None]
-        damping_squared = damping**2
         both_goals = None
         first_position = None
         carried = None  # the kinematics of the poses a step chose, where comparing two candidates computed them

@@ -407,3 +407,15 @@ def test_refinement_moves_the_free_joints_when_one_is_held_by_its_limit(panda):
     reached = lambda joints: (panda.position_error(joints, targets) < 1e-6).double().mean()  # noqa: E731
     assert reached(refined) > reached(clamped) + 0.15  # 0.52 against 0.20 when written
     assert panda.limit_violations(refined).sum() == 0
+
+
+def test_a_few_targets_reach_checks_are_a_batchs():
+    """A few CPU targets are read through NumPy (one target's solve), a batch through torch: the same answers."""
+    arm = load_robot("panda")
+    targets = arm.end_effector(arm.random_poses(40, generator=torch.Generator().manual_seed(6)))
+    targets[::3, :3] = arm.reach_center + 3 * (targets[::3, :3] - arm.reach_center)  # out of reach: pulled in
+    targets[1, :3] = arm.reach_center  # at the centre: no direction to pull in
+    few = targets[:10]
+    assert bool((~arm.is_reachable(targets)).any()) and bool(arm.is_reachable(targets).any())
+    assert torch.equal(arm.is_reachable(few), arm.is_reachable(targets)[:10])
+    torch.testing.assert_close(arm.clamp_to_workspace(few), arm.clamp_to_workspace(targets)[:10])

@@ -182,9 +182,16 @@ class ChainFiLMDenoiser(nn.Module):
         condition = film[:, :, :, None].unbind(1)
         feature_scale, step_gain = condition[-1].unbind(1)
         features, step = self.features_and_step(x, target)
-        h = self.input(grouped(features) * feature_scale[..., : self.input.in_features])
-        h = film_residual_pass(h, condition, self.norms, self.trunk_layers())
-        estimate = x + self.output(nn.functional.silu(h)).view_as(x)
+        scaled = grouped(features) * feature_scale[..., : self.input.in_features]
+        output = None
+        table = self.condition_table
+        if table is not None and self.int8 is None and not torch.is_grad_enabled() and small_batch(len(x), x.device):
+            # a few rows (one target's K on a CPU), as the condition's table: the trunk with its weights laid out
+            output = table.trunk(self, scaled.view_as(features), condition, targets)
+        if output is None:
+            h = film_residual_pass(self.input(scaled), condition, self.norms, self.trunk_layers())
+            output = self.output(nn.functional.silu(h))
+        estimate = x + output.view_as(x)
         if self.config.dls_skip:
             # the step in x's coordinates: where x lands after it, less x (continuous joints as (cos, sin) too)
             moved = self.representation.encode(self.representation.decode(x, clamp=False) + step) - x

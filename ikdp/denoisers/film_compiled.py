@@ -80,48 +80,49 @@ def _cpu_name() -> str:
     return "\n".join(first.values()) or platform.processor()
 
 
-def compile_command(compiler: str, flags: tuple[str, ...], output: Path) -> list[str]:
+def compile_command(compiler: str, flags: tuple[str, ...], output: Path, source: Path = SOURCE) -> list[str]:
     if is_msvc(compiler):  # builds the DLL and its import library beside `output`, in the build's own folder
-        return [compiler, *MSVC_FLAGS, *flags, str(SOURCE), f"/Fe{output}"]
-    return [compiler, *FLAGS, *flags, str(SOURCE), "-o", str(output), "-lm"]
+        return [compiler, *MSVC_FLAGS, *flags, str(source), f"/Fe{output}"]
+    return [compiler, *FLAGS, *flags, str(source), "-o", str(output), "-lm"]
 
 
-def build(compiler: str, flags: tuple[str, ...]) -> Path:
-    """film_kernel.c built with `flags` beside the common ones, once: the cached library when it exists.
+def build(compiler: str, flags: tuple[str, ...], source: Path = SOURCE) -> Path:
+    """film_kernel.c (or another of ikdp's C files, `source`) built with `flags` beside the common ones, once: the
+    cached library when it exists.
 
     Raises subprocess.CalledProcessError (its stderr holds the compiler's message) when the build fails.
     """
     version = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
     key = hashlib.sha256(
         "\0".join(
-            (SOURCE.read_text(), " ".join(compile_command(compiler, flags, Path())), version.stdout + version.stderr,
-             _cpu_name(), platform.machine())
+            (source.read_text(), " ".join(compile_command(compiler, flags, Path(), source)),
+             version.stdout + version.stderr, _cpu_name(), platform.machine())
         ).encode()
     ).hexdigest()[:16]  # fmt: skip
-    library = cache_folder() / f"film_kernel-{key}{SUFFIX}"
+    library = cache_folder() / f"{source.stem}-{key}{SUFFIX}"
     if library.exists():
         return library
     library.parent.mkdir(parents=True, exist_ok=True)
     # build in a folder beside the target and rename: a concurrent process or a kill never leaves half a
     # library, and what else the compiler writes (MSVC's .obj, .lib, .exp) goes with the folder
-    with tempfile.TemporaryDirectory(prefix=".film_kernel-", dir=library.parent) as folder:
+    with tempfile.TemporaryDirectory(prefix=f".{source.stem}-", dir=library.parent) as folder:
         built = Path(folder) / library.name
         subprocess.run(
-            compile_command(compiler, flags, built), check=True, capture_output=True, text=True, timeout=120,
+            compile_command(compiler, flags, built, source), check=True, capture_output=True, text=True, timeout=120,
             cwd=folder,
         )  # fmt: skip
         os.replace(built, library)
     return library
 
 
-def build_for_this_cpu(compiler: str) -> Path:
+def build_for_this_cpu(compiler: str, source: Path = SOURCE) -> Path:
     """The build for this CPU, else (the compiler refuses -march=native) the compiler's default target."""
     if not is_msvc(compiler):
         try:
-            return build(compiler, NATIVE)
+            return build(compiler, NATIVE, source)
         except subprocess.CalledProcessError:
             pass
-    return build(compiler, ())
+    return build(compiler, (), source)
 
 
 def open_library(path: Path) -> ctypes.CDLL:
@@ -142,8 +143,9 @@ def _failure(error: Exception) -> str:
     return next((line for line in lines if "error" in line.lower()), lines[0] if lines else type(error).__name__)
 
 
-def _load() -> tuple[ctypes.CDLL | None, str]:
-    """The kernel, or None and why not."""
+def built_library(source: Path = SOURCE, opener=None) -> tuple[ctypes.CDLL | None, str]:
+    """The kernel built from `source` and opened by `opener` (which sets its functions' signatures; None:
+    film_kernel.c's `open_library`), or None and why not."""
     if os.environ.get("IKDP_COMPILED", "1") == "0":
         return None, "IKDP_COMPILED=0"
     compiler = find_compiler()
@@ -151,11 +153,11 @@ def _load() -> tuple[ctypes.CDLL | None, str]:
         named = f"CC={os.environ['CC']!r} is not on the PATH" if os.environ.get("CC") else None
         return None, named or f"no C compiler found (looked for {', '.join(COMPILERS)}; set CC to name one)"
     try:
-        return open_library(build_for_this_cpu(compiler)), ""
+        return (opener or open_library)(build_for_this_cpu(compiler, source)), ""
     except subprocess.CalledProcessError as error:
-        return None, f"{compiler} could not build {SOURCE.name}: {_failure(error)}"
+        return None, f"{compiler} could not build {source.name}: {_failure(error)}"
     except (OSError, subprocess.SubprocessError, AttributeError) as error:
-        return None, f"{SOURCE.name} could not be built by {compiler} or loaded: {_failure(error)}"
+        return None, f"{source.name} could not be built by {compiler} or loaded: {_failure(error)}"
 
 
 def load_kernel() -> ctypes.CDLL | None:
@@ -167,7 +169,7 @@ def load_kernel() -> ctypes.CDLL | None:
     with _lock:
         if not _tried:
             _tried = True
-            _library, reason = _load()
+            _library, reason = built_library()
             if _library is None:  # switched off by the user: only a note; otherwise the user may want to fix it
                 level = logging.INFO if reason == "IKDP_COMPILED=0" else logging.WARNING
                 logger.log(level, "ikdp: the planar FiLM step runs in torch (%s), %s", reason, SLOWER)
