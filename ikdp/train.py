@@ -97,8 +97,16 @@ NO_STEP_LIMIT = 10**12  # --minutes without --steps: the clock alone ends the ru
 
 
 def recipe_of(config: TrainConfig) -> Recipe:
-    """The recipe that fills what `config` leaves out: planar, or a robot's for its device."""
-    return recipe_for(robot=bool(config.robot or config.urdf), device_type=config.device.split(":")[0])
+    """The recipe that fills what `config` leaves out: planar, or a robot's (chain or tree) for its device."""
+    return recipe_for(arm=arm_kind(config), device_type=config.device.split(":")[0])
+
+
+def arm_kind(config: TrainConfig) -> str:
+    """What `config` trains: "planar", "chain" (--robot, or --urdf with one --ee-link) or "tree" (--urdf with
+    several, the arm build_chain_arm makes a TreeArm)."""
+    if config.urdf and len(ee_links(config)) > 1:
+        return "tree"
+    return "chain" if config.robot or config.urdf else "planar"
 
 
 def with_arm_defaults(config: TrainConfig) -> TrainConfig:

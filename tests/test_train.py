@@ -14,9 +14,9 @@ import torch
 import ikdp
 from ikdp.checkpoint import read_checkpoint
 from ikdp.priors import PosePrior, load_pose_file, make_prior
-from ikdp.train import TrainConfig, parse_config, train, validate, with_arm_defaults
+from ikdp.train import TrainConfig, parse_config, recipe_of, train, validate, with_arm_defaults
 from ikdp.train_budget import TrainingBudget
-from ikdp.train_recipes import RECIPE_FIELDS
+from ikdp.train_recipes import RECIPE_FIELDS, recipe_for
 
 
 def small_config(tmp_path, **changes):
@@ -184,6 +184,20 @@ def test_options_left_out_come_from_the_arms_recipe():
     assert with_arm_defaults(TrainConfig(minutes=5.0)).steps > 10**9  # the clock alone ends it
     filled = with_arm_defaults(TrainConfig(robot="spatial2"))
     assert all(getattr(filled, name) is not None for name in RECIPE_FIELDS)
+
+
+def test_a_tree_on_a_cpu_takes_the_tree_recipe_and_one_hand_of_it_the_chains():
+    hands = ("left_hand", "right_hand")
+    tree = with_arm_defaults(TrainConfig(urdf="two_arms.urdf", ee_link=hands))
+    assert (recipe_of(tree).name, tree.batch, tree.ema) == ("tree, CPU", 512, 0.995)
+    assert (tree.hidden, tree.prediction, tree.dls_skip) == (256, "sample", True)  # the rest: the CPU robot's
+    chain = with_arm_defaults(TrainConfig(urdf="two_arms.urdf", ee_link=hands[:1]))
+    assert (recipe_of(chain).name, chain.batch, chain.ema) == ("robot, CPU", 1024, 0.999)
+    on_gpu = with_arm_defaults(TrainConfig(urdf="two_arms.urdf", ee_link=hands, device="cuda"))
+    assert (recipe_of(on_gpu).name, on_gpu.batch) == ("robot, GPU", 8192)
+    assert with_arm_defaults(TrainConfig(urdf="two_arms.urdf", ee_link=hands, batch=2048)).batch == 2048
+    with pytest.raises(ValueError, match="^arm: got 'humanoid', expected one of planar, chain, tree$"):
+        recipe_for(arm="humanoid", device_type="cpu")
 
 
 def test_a_robot_with_another_denoiser_leaves_the_film_only_recipe_parts_off(tmp_path):
