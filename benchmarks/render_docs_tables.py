@@ -492,15 +492,15 @@ TABLES = {
     "chain_fk": Table("chain_fk.json", "python benchmarks/chain_fk.py", chain_fk),
     "viz_frames": Table("viz_frames.json", "python benchmarks/viz_frames.py", viz_frames),
     "tree_seeds_pinocchio": Table(
-        "tree_seeds_g1_8min_pinocchio.json",
-        "python -m benchmarks.tree_seeds --checkpoint g1_hands_8min.pt --targets 500",
+        "tree_seeds_g1_shipped.json",
+        "python -m benchmarks.tree_seeds --checkpoint checkpoints/ikdp_g1.pt --targets 500",
         tree_seeds,
-        "500 held-out G1 targets (both hands' poses from poses uniform within the limits); the model trained "
-        "`--minutes 8` on one CPU thread. Every row scored by the same rule through the same kinematics.",
+        "500 held-out G1 targets (both hands' poses from poses uniform within the limits); the shipped `ikdp_g1`, "
+        "trained `--minutes 8` on one CPU thread. Every row scored by the same rule through the same kinematics.",
     ),
     "tree_self_collision": Table(
-        "tree_self_collision_g1_8min.json",
-        "python -m benchmarks.tree_self_collision --checkpoint g1_hands_8min.pt --targets 200",
+        "tree_self_collision_g1_shipped.json",
+        "python -m benchmarks.tree_self_collision --checkpoint checkpoints/ikdp_g1.pt --targets 200",
         tree_self_collision,
         "200 G1 targets from poses free of self-collision, K = 16 + 5 DLS steps, DDPM; solved: a pose with both "
         "hands within 1 mm and 1° (apart: and no overlap); s: the median wall time of 3 alternating rounds.",
