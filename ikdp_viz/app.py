@@ -103,6 +103,7 @@ class VizApp:
         )
         self.reruns = RerunReadout()  # again from the same x_T: how far each run's poses moved from the one before
         self.writer.after_solve = self._after_solve
+        self.writer.draw_overlay = lambda frame: self.constraint_controls.draw_overlay(frame)
         self.downloads = Downloads(self.writer, self.panel)
         self._wire_panel()
         self.sampling.offer_student()

@@ -56,6 +56,7 @@ class ConstraintControls:
         self.largest_jump, self.branch_switches = 0.0, 0  # follow mode's, since it was turned on (ikdp.tracking's)
         self.highlight_set: tuple | None = None  # (panel, number) follow mode wrote into the highlight dropdown
         self.overlay = self.target_marks = None  # the coloured states; the free axis and its ring (target's child)
+        self._overlay_of: tuple | None = None  # (solve, sample, on) the overlay was drawn for
         self.build(solver)
 
     # ------------------------------------------------------------------ the folder
@@ -122,9 +123,8 @@ class ConstraintControls:
         self.on_loop(handler, wait=event.client is None)
 
     def _on_color_states(self, writer) -> None:
-        """Writer thread: the overlay and every sample's colours follow the checkbox."""
+        """Writer thread: the overlay and every sample's colours follow the checkbox (the frame redrawn draws both)."""
         writer.set_constraint_colors(self.color_states.value)
-        self._draw_overlay(writer.solved)
 
     def _on_target_kind(self, writer) -> None:
         self._draw_target_marks(writer, str(self.target_kind.value))
@@ -254,7 +254,6 @@ class ConstraintControls:
         writer.followed = bool(self.follow.value)
         if solved.final_angles is not None and solved.request.model is self.solver:  # not a replaced model's
             self._after_solve(solved, panel)
-            self._draw_overlay(solved)
 
     def _after_solve(self, solved, panel) -> None:
         view = solved.view
@@ -291,18 +290,23 @@ class ConstraintControls:
         if self.overlay is not None:
             self.overlay.remove()
             self.overlay = None
+        self._overlay_of = None
 
-    def _draw_overlay(self, solved) -> None:
-        """Writer thread: the highlighted sample at every state, coloured by whether its constraints hold."""
-        self._remove_overlay()
-        if solved is None or solved.state_violation is None or not self.color_states.value:
+    def draw_overlay(self, frame) -> None:
+        """Drawing loop, inside the frame's `server.atomic()`: the frame's highlighted sample at every state,
+        coloured by whether its constraints hold; written again only when the solve, the sample or the checkbox
+        changed, so it never shows another sample than the frame's."""
+        solved = frame.solved
+        shown = solved.state_violation is not None and solved.request.model is self.solver and self.color_states.value
+        drawn = self._overlay_of
+        if drawn is not None and drawn[0] is solved and drawn[1:] == (frame.highlight, shown):
             return
-        view = solved.view
-        choice = 0
-        if self.last_pose is not None and solved.final_angles is not None:
-            choice = int(np.argmin(np.abs(solved.final_angles - self.last_pose).sum(axis=-1)))
-        path, polylines = arm_kind(self.solver).sample_path(view, choice)
-        segments, colors = overlay_segments(path, solved.state_violation[:, choice], polylines)
+        self._remove_overlay()
+        self._overlay_of = (solved, frame.highlight, shown)
+        if not shown:
+            return
+        path, polylines = arm_kind(self.solver).sample_path(solved.view, frame.highlight)
+        segments, colors = overlay_segments(path, solved.state_violation[:, frame.highlight], polylines)
         self.overlay = self.server.scene.add_line_segments(
             "/constraints/states", segments, line_colors(colors), thickness=2.0, thickness_units="screen"
         )

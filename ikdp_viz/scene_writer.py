@@ -72,6 +72,7 @@ class SceneWriter:
         self.latencies: collections.deque[tuple[float, float, bool]] = collections.deque(maxlen=100_000)
         self.submit_solve = None  # submit_solve(arrival, animate): the app's solve of the newest target
         self.on_changed = None  # on_changed(name): the handler of a control that writes other controls
+        self.draw_overlay = None  # draw_overlay(frame): the Constraints folder's coloured states, in the frame's atomic
         self.asked = Asked(
             self._apply,
             wait=lambda: None if self.animation is None else 1.0 / FRAMES_PER_SECOND,  # the next frame, or none
@@ -289,6 +290,8 @@ class SceneWriter:
         write_panel = not frame.light or now - self._panel_written >= 1.0 / PLAYING_PANEL_WRITES
         with self.server.atomic():
             self.draw_scene(frame)
+            if self.draw_overlay is not None:
+                self.draw_overlay(frame)
             if write_panel:
                 self.output.frame(frame, self.kind, self.solver)
                 self._panel_written = now

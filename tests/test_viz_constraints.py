@@ -385,3 +385,18 @@ def test_follow_mode_is_trackings_step_small_drags_reach_each_target_with_small_
             text = controls.readout.content
             assert "missed" not in text and "branch switch" not in text, text
         assert controls.branch_switches == 0 and controls.largest_jump < 0.15
+
+
+def test_the_overlay_draws_the_highlighted_sample_and_follows_the_highlight(app):
+    from ikdp_viz.arm_kinds import arm_kind
+
+    controls = app.constraint_controls
+    controls.add_obstacle(position=(0.9, 0.6, 0.0), radius=0.5)
+    settle(app)
+    for choice in ("2", "5"):
+        app.panel.highlight.value = choice  # drawn with the frame that shows that sample, never a stale one
+        settle(app)
+        sample = int(choice) - 1
+        path, polylines = arm_kind(app.solver).sample_path(app.solved.view, sample)
+        segments, _ = overlay_segments(path, app.solved.state_violation[:, sample], polylines)
+        np.testing.assert_allclose(controls.overlay.points, segments, rtol=1e-5, atol=1e-6)
