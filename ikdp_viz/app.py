@@ -297,10 +297,11 @@ class VizApp:
         panel.next_button.on_click(lambda event: self._ask(event, state=StateAsked(delta=+1)))
         panel.play_button.on_click(lambda event: self._ask(event, toggle_play=True))
         joint_space = panel.joint_space
-        for toggle in (panel.show_trail, panel.show_estimate, panel.highlight, joint_space.show, joint_space.first,
-                       joint_space.second, joint_space.grid, panel.learn.trail_of,
-                       panel.learn.clock, panel.duration):  # fmt: skip
+        for toggle in (panel.show_trail, panel.show_estimate, panel.highlight, joint_space.show, joint_space.grid,
+                       panel.learn.trail_of, panel.learn.clock, panel.duration):  # fmt: skip
             toggle.on_update(lambda event: self._ask(event, redraw=True))
+        for name, dropdown in (("joint x", joint_space.first), ("joint y", joint_space.second)):
+            dropdown.on_update(lambda event, name=name: self._ask(event, changed=[name], redraw=True))
         panel.prior_button.on_click(lambda event: self.draw_prior(event.client is None))
         panel.export_button.on_click(self.downloads.on_export)
         panel.learn.share.on_click(self.downloads.on_share)
@@ -319,8 +320,11 @@ class VizApp:
     def _on_changed(self, name: str) -> None:
         """Drawing loop: the handler of a control that writes other controls (sampling_controls.py)."""
         sampling = self.sampling
+        joint_space = self.panel.joint_space  # a pair of one joint twice is a line: the other dropdown moves on
         handler = {"samples": sampling.on_samples, "sampler": sampling.on_sampler, "steps": sampling.on_steps,
-                   "refine": sampling.on_refine, "switch": sampling.on_switch}[name]  # fmt: skip
+                   "refine": sampling.on_refine, "switch": sampling.on_switch,
+                   "joint x": lambda: joint_space.keep_apart(joint_space.first),
+                   "joint y": lambda: joint_space.keep_apart(joint_space.second)}[name]  # fmt: skip
         handler()
 
     def _ask(self, event: viser.GuiEvent, **fields) -> None:

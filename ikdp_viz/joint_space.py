@@ -225,7 +225,4 @@ def build_joint_space_controls(gui: viser.GuiApi) -> JointSpaceControls:
         first = gui.add_dropdown("x: joint", options, initial_value=options[0], disabled=True)
         second = gui.add_dropdown("y: joint", options, initial_value=options[1], disabled=True)
         grid = gui.add_slider("field grid", min=4, max=40, step=1, initial_value=DEFAULT_GRID)
-    controls = JointSpaceControls(folder, show, first, second, grid)
-    first.on_update(lambda _: controls.keep_apart(first))  # before the app's redraw, which reads the pair
-    second.on_update(lambda _: controls.keep_apart(second))
-    return controls
+    return JointSpaceControls(folder, show, first, second, grid)
