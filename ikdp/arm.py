@@ -24,7 +24,7 @@ from ikdp.kinematics import (
     tip_position,
     wrap_angle,
 )
-from ikdp.refine import damped_least_squares
+from ikdp.refine import RefinedByDampedLeastSquares
 
 
 def uniform_angles(
@@ -42,7 +42,7 @@ def uniform_angles(
     return (torch.rand(shape, generator=generator, **where) * 2 - 1) * math.pi
 
 
-class PlanarArm:
+class PlanarArm(RefinedByDampedLeastSquares):
     """The paper's planar arm: N links of given lengths, pose = absolute link headings (N,)."""
 
     kind = "planar"
@@ -158,10 +158,6 @@ class PlanarArm:
         batch (ChainArm's counterpart fuses a chain's)."""
         return self
 
-    def refine(self, headings: torch.Tensor, targets: torch.Tensor, *, steps: int = 5, task=None) -> torch.Tensor:
-        """`refine.damped_least_squares` on this arm."""
-        return damped_least_squares(self, headings, targets, steps=steps, task=task)
-
     def with_default_constraints(self, constraints) -> list:
         """The constraints a solve runs: those given (a tree adds its self-collision check)."""
         return list(constraints)
@@ -181,12 +177,6 @@ class PlanarArm:
     def bind_position_only(self, constraint):
         """`PositionOnly.bind` (see `position_only_targets`)."""
         self.position_only_targets(constraint, None)
-
-    def refine_scored(
-        self, headings: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
-    ) -> tuple[torch.Tensor, None]:
-        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
-        return damped_least_squares(self, headings, targets, steps=steps, until_reached=until_reached), None
 
     def errors_by_effector(self, headings: torch.Tensor, targets: torch.Tensor) -> None:
         """None: one end effector, whose errors are `tip_and_rotation_errors` (a tree gives one per end effector)."""

@@ -29,7 +29,7 @@ import torch
 from ikdp.arm_inputs import FEW_ROWS, drawing_device, few_rows_on_cpu, validate_target_rows
 from ikdp.fused_chain import FusedChain
 from ikdp.joint_limits import JointLimits
-from ikdp.refine import damped_least_squares
+from ikdp.refine import RefinedByDampedLeastSquares
 from ikdp.robot_data import installed_copy
 from ikdp.rotations import (
     matrix_to_quaternion,
@@ -55,7 +55,7 @@ def axis_basis(axis: torch.Tensor) -> torch.Tensor:
     return torch.stack([first, torch.linalg.cross(axis, first), axis], dim=-1)
 
 
-class ChainArm(JointLimits):
+class ChainArm(JointLimits, RefinedByDampedLeastSquares):
     """A serial chain of revolute, continuous and prismatic joints; targets are positions or poses."""
 
     kind = "chain"
@@ -497,16 +497,6 @@ class ChainArm(JointLimits):
         if self._fused is None:
             self._fused = FusedChain(self)
         return self._fused
-
-    def refine(self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int = 5, task=None) -> torch.Tensor:
-        """`refine.damped_least_squares` on this arm (FusedChain.refine: the same, fused, for a few poses)."""
-        return damped_least_squares(self, joints, targets, steps=steps, task=task)
-
-    def refine_scored(
-        self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
-    ) -> tuple[torch.Tensor, None]:
-        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
-        return damped_least_squares(self, joints, targets, steps=steps, until_reached=until_reached), None
 
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """`position_error` and, for pose targets (..., 7), `rotation_error`, from one float64 kinematics pass."""

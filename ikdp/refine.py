@@ -255,3 +255,17 @@ def better_of(
     clamped_miss = error(clamped, targets).norm(dim=-1)
     without_miss = error(without_blocked, targets).norm(dim=-1)
     return torch.where((without_miss < clamped_miss)[..., None], without_blocked, clamped)
+
+
+class RefinedByDampedLeastSquares:
+    """An arm's refinement: `damped_least_squares` on its own task (a planar arm's tip, a chain's pose, a tree's
+    stacked hands). A chain's few poses take FusedChain's fused loop instead (`small_batch_kinematics`)."""
+
+    def refine(self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int = 5, task=None) -> torch.Tensor:
+        return damped_least_squares(self, joints, targets, steps=steps, task=task)
+
+    def refine_scored(
+        self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
+    ) -> tuple[torch.Tensor, None]:
+        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
+        return damped_least_squares(self, joints, targets, steps=steps, until_reached=until_reached), None

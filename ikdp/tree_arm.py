@@ -29,12 +29,12 @@ import torch
 from ikdp.arm_inputs import drawing_device, validate_target_rows
 from ikdp.chain_arm import QUATERNION_TOLERANCE, TARGET_KINDS, ChainArm
 from ikdp.joint_limits import JointLimits
-from ikdp.refine import damped_least_squares
+from ikdp.refine import RefinedByDampedLeastSquares
 from ikdp.rotations import matrix_to_quaternion, quaternion_to_matrix
 from ikdp.urdf import read_chain
 
 
-class TreeArm(JointLimits):
+class TreeArm(JointLimits, RefinedByDampedLeastSquares):
     """Several end effectors on one base: the movable joints of every base-to-end-effector path, each once."""
 
     kind = "tree"
@@ -382,16 +382,6 @@ class TreeArm(JointLimits):
         """The tree itself: its chains share joints, so a few poses take the general kinematics (a chain's fused
         counterpart, ikdp/fused_chain.py, covers one end effector)."""
         return self
-
-    def refine(self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int = 5, task=None) -> torch.Tensor:
-        """`refine.damped_least_squares` on the stacked task of every end effector."""
-        return damped_least_squares(self, joints, targets, steps=steps, task=task)
-
-    def refine_scored(
-        self, joints: torch.Tensor, targets: torch.Tensor, *, steps: int, until_reached: bool = False
-    ) -> tuple[torch.Tensor, None]:
-        """`refine` (no task), and no errors measured on the way (FusedChain's does): the caller measures them."""
-        return damped_least_squares(self, joints, targets, steps=steps, until_reached=until_reached), None
 
     def tip_and_rotation_errors(self, joints, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """The worst end effector's position error (...) and (poses) the worst rotation error (...)."""
