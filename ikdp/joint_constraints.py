@@ -46,9 +46,9 @@ class LockedJoints(Constraint):
             named_as[index] = key
             label = f"locked_joints: joint {key!r}"
             value = finite_tensor(value, label)
-            if arm.kind == "planar":
+            if bool(arm.continuous_joints[index]):  # a heading or a continuous joint: any angle, wrapped
                 value = wrap_angle(value)
-            elif limits is not None and arm.joint_types[index] != "continuous":
+            elif limits is not None:
                 lower, upper = float(limits[index, 0]), float(limits[index, 1])
                 outside = (value < lower) | (value > upper)
                 if outside.any():

@@ -184,6 +184,16 @@ def test_continuous_joints_wrap_instead_of_clamping():
     assert arm.joint_limits[2].tolist() == pytest.approx([-math.pi, math.pi])
 
 
+def test_a_locked_continuous_joint_is_held_at_its_wrapped_angle_and_a_limited_one_within_limits():
+    import ikdp
+
+    arm = mixed_arm()  # j1 revolute [-2, 2], j2 prismatic [-0.1, 0.2], j3 continuous
+    bound = ikdp.LockedJoints({2: 7.0}).bind(arm, 1, 2)
+    torch.testing.assert_close(bound.values[:, 2], torch.full((2,), 7.0 - 2 * math.pi))  # as normalize_joints holds it
+    with pytest.raises(ValueError, match="outside its limits"):
+        ikdp.LockedJoints({0: 3.0}).bind(arm, 1, 1)
+
+
 def test_quaternions_are_w_first_unit_and_match_the_rotation():
     arm = mixed_arm()
     # Zero pose of a single-yaw robot: the hand's quaternion is (cos(a/2), 0, 0, sin(a/2)).
