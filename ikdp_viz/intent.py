@@ -49,7 +49,23 @@ class Intent:
     redraw: bool = False  # a view setting changed: draw the state on screen again
 
     def empty(self) -> bool:
-        return self == Intent()
+        """Nothing asked (field by field: `==` on the arrays some fields hold has no single truth)."""
+        return (
+            all(
+                value is None
+                for value in (
+                    self.model,
+                    self.target,
+                    self.solve,
+                    self.solved,
+                    self.replay,
+                    self.prior,
+                    self.error,
+                    self.state,
+                )
+            )  # fmt: skip
+            and not (self.tabs or self.changed or self.chores or self.toggle_play or self.redraw)
+        )
 
 
 class Asked:
