@@ -9,8 +9,9 @@ as an animation does (states 40 to 80 in a loop, the frame a playing animation d
 the variants below take turns in a new order each round, `--rounds` times: one 3 s count
 swings by 10 ms a frame here, so only medians over many rounds resolve a few ms.
 
-  as shipped          the playing frame: 6 trail states, the panel at most 6 times a second
-  panel every state   the slider, chart and readouts written with every state
+  as shipped          the playing frame: 6 trail states; the slider and readout with every state, the chart and
+                      schedule plot standing (a playing frame marks no state on them)
+  chart every state   the chart's and schedule plot's markers moved with every state too
   4 trail states      a lighter trail
   80-face spheres     the joints and tips as 80-face spheres, not the shipped 20 (an extra hidden node each, swapped in)
   nothing written     the last frame stands; only a tiny message keeps the page drawing
@@ -33,7 +34,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-VARIANTS = ("as shipped", "panel every state", "4 trail states", "80-face spheres", "nothing written", "nothing drawn")
+VARIANTS = ("as shipped", "chart every state", "4 trail states", "80-face spheres", "nothing written", "nothing drawn")
 
 
 @dataclass(frozen=True)
@@ -60,8 +61,9 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     from playwright.sync_api import sync_playwright
 
     import ikdp
-    from ikdp_viz import planar_kind, scene_writer
+    from ikdp_viz import planar_kind
     from ikdp_viz.app import VizApp
+    from ikdp_viz.frame import build_frame
     from ikdp_viz.screenshot import COUNT_FRAMES, open_viewer_page
 
     torch.set_num_threads(1)
@@ -70,7 +72,6 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     app = VizApp(server, ikdp.load(config.ckpt), solve_now=False, animation_seconds=0.0, target=config.target)
     writer = app.writer
     chosen = {"variant": "nothing written", "trail_states": planar_kind.PLAYING_TRAIL_STATES}
-    panel_written = [-1.0]
     keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
     dense: dict = {}  # the 80-face joints and tips, hidden but for their variant
 
@@ -82,7 +83,10 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             if variant.startswith("nothing"):
                 return
             # every frame here is a playing one, its trail as the variant asks
-            frame = dataclasses.replace(writer.make_frame(state), light=True, trail_states=chosen["trail_states"])
+            still = writer.make_frame(state)
+            frame = build_frame(writer.kind, writer.solved, state, writer.settings(), palettes=writer._palettes,
+                                animating_to=writer.solved.view.num_states - 1)  # fmt: skip
+            frame = dataclasses.replace(frame, trail_states=chosen["trail_states"])
             writer.view.update(frame)
             if variant == "80-face spheres":
                 for name in ("joints", "tips"):
@@ -92,10 +96,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
                         node.batched_colors,
                     )
                     node.visible = False
-            every = 0.0 if variant == "panel every state" else 1.0 / scene_writer.PLAYING_PANEL_WRITES
-            if time.monotonic() - panel_written[0] >= every:
-                writer.output.frame(frame, writer.kind, writer.solver)
-                panel_written[0] = time.monotonic()
+            writer.output.frame(still if variant == "chart every state" else frame, writer.kind, writer.solver)
 
     def switch(variant: str) -> None:
         """On the writer's thread: from now on, draw `variant`."""

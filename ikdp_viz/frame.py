@@ -193,7 +193,9 @@ def build_frame(kind, solved, state: int, settings: ViewSettings, *, palettes, a
         text += "  \n" + solved.request.compare_note
     if note is not None:
         text += "  \n" + note
-    chart = error_curves(view, highlight, state, scale=kind.chart_scale)
+    # a playing frame's chart has no marker of the state: redrawing the chart with every state cost the page more
+    # than the arms did (benchmarks/viz_frame_costs.py); the slider and the readout name the state
+    chart = error_curves(view, highlight, None if light else state, scale=kind.chart_scale)
     compared = solved.request.compare_sampler if solved.compare is not None else None
     if compared is not None:
         chart = (*chart, compare_curve(view, solved.compare, highlight, scale=kind.chart_scale))

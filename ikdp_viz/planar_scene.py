@@ -255,7 +255,7 @@ def circle_segments(radius: float, count: int = 256, z: float = 0.0) -> np.ndarr
     return polyline_segments(ring, z=z)
 
 
-def error_curves(view: SolveView, highlight: int, state: int, *, scale: float = 1.0) -> tuple[np.ndarray, ...]:
+def error_curves(view: SolveView, highlight: int, state: int | None, *, scale: float = 1.0) -> tuple[np.ndarray, ...]:
     """uPlot data for log10 of the tip error (times `scale`: a unit) against diffusion time, x ascending (t = 0 .. T).
 
     Series: the median over the K samples, the highlighted sample, and a marker
@@ -267,8 +267,9 @@ def error_curves(view: SolveView, highlight: int, state: int, *, scale: float = 
     error = view.tip_error * scale  # (S+1, K)
     median = np.log10(np.maximum(np.median(error, axis=1), ERROR_FLOOR))
     chosen = np.log10(np.maximum(error[:, highlight], ERROR_FLOOR))
-    marker = np.full(view.num_states, np.nan)
-    marker[state] = chosen[state]
+    marker = np.full(view.num_states, np.nan)  # None: no state marked
+    if state is not None:
+        marker[state] = chosen[state]
     return (view.labels[order].astype(np.float64), median[order], chosen[order], marker[order])
 
 

@@ -43,7 +43,6 @@ from ikdp_viz.teaching import schedule_curves, schedule_plot_data
 FRAMES_PER_SECOND = 30.0  # the animation's clock ticks at most this often
 NOISE_HOLD = 0.6  # seconds pure noise (t = T) shows before a played denoising moves (the noisy steps pass fast)
 SOFTWARE_WEBGL_TOAST = "webgl-software-rendering"  # viser's own notification id (its BrowserWarning.tsx)
-PLAYING_PANEL_WRITES = 6.0  # per second at most, the slider, chart and readouts while an animation plays
 
 
 class SceneWriter:
@@ -62,7 +61,6 @@ class SceneWriter:
         self.obstacles = 0  # obstacles the Constraints folder draws (the legend lists them)
         self.followed = False  # follow mode keeps the highlighted sample (the Constraints folder says)
         self.after_solve = None  # called here with each solve put on screen (the Constraints folder's follow mode)
-        self._panel_written = -np.inf  # time.monotonic() of the last state written to the panel
         self._unseen = False  # the solve on screen waits at pure noise for a tab to open, to play then
         self.wait_for_tab = False  # with no tab open, a solve to animate waits at pure noise (the command line's)
         self._replay_target: np.ndarray | None = None  # a drag ended here: animate its solve once drawn
@@ -247,7 +245,6 @@ class SceneWriter:
         offsets = state_offsets(self.noise_levels(), str(self.panel.learn.clock.value), seconds)
         hold = NOISE_HOLD if first == 0 else 0.0  # pure noise stays a moment: the learner sees where it starts
         self.animation = Animation(first, last, seconds / max(last, 1), time.monotonic() + hold, offsets)
-        self._panel_written = -np.inf  # the panel shows where it starts
         self._draw_state(first)
         self._tick()
 
@@ -284,17 +281,13 @@ class SceneWriter:
             return
         frame = self.make_frame(state)
         self.state, self.frame = frame.state, frame
-        now = time.monotonic()
-        # Writing the panel with every state cost the playing page 5.4 ms a frame more in software WebGL
-        # (benchmarks/viz_frame_costs.py): while playing it follows a few times a second; still frames write it.
-        write_panel = not frame.light or now - self._panel_written >= 1.0 / PLAYING_PANEL_WRITES
+        # The slider and the readout go with every state drawn, in the scene's atomic: written a few times a second
+        # instead, they named a state up to 17 steps away from the arms on screen while playing.
         with self.server.atomic():
             self.draw_scene(frame)
             if self.draw_overlay is not None:
                 self.draw_overlay(frame)
-            if write_panel:
-                self.output.frame(frame, self.kind, self.solver)
-                self._panel_written = now
+            self.output.frame(frame, self.kind, self.solver)
             self.output.playing(self.playing)
 
     def draw_scene(self, frame: Frame) -> None:
@@ -339,6 +332,13 @@ def snap_note(labels: np.ndarray, asked: float, state: int) -> str | None:
     )
 
 
+def same_columns(shown, columns) -> bool:
+    """A plot's data already holds `columns` (NaN equal to NaN): writing it again would redraw the plot."""
+    return len(shown) == len(columns) and all(
+        np.shape(a) == np.shape(b) and np.array_equal(a, b, equal_nan=True) for a, b in zip(shown, columns, strict=True)
+    )
+
+
 def hide_toast(client) -> None:
     """Ask `client`'s page to close viser's "Software WebGL rendering detected" notification (viser's own message:
     the notification has a fixed id; a page with a GPU never shows it, and the message then does nothing)."""
@@ -360,9 +360,12 @@ class PanelOutput:
         self._schedule = None  # (solver, its ScheduleCurves) the schedule plot draws
 
     def frame(self, frame: Frame, kind, solver) -> None:
-        """The slider, the chart and the readouts at the frame's state, and the legend of its colours."""
+        """The slider, the chart and the readouts at the frame's state, and the legend of its colours; only what
+        changed is sent (a playing frame's chart and schedule plot have no marker of the state, so they stand)."""
         panel, view = self.panel, frame.view
-        panel.timestep.value = int(view.labels[frame.state])  # the app ignores slider updates with no client
+        timestep = int(view.labels[frame.state])
+        if panel.timestep.value != timestep:
+            panel.timestep.value = timestep  # the app ignores slider updates with no client
         if self._chart_solve is not frame.solved:
             decades = readouts.error_range(view.tip_error * kind.chart_scale)
             panel.plot.scales = plot_scales(solver.timesteps, *decades)
@@ -374,18 +377,23 @@ class PanelOutput:
             extra = () if compared is None else (viser.uplot.Series(label=compared, stroke=COMPARE_STROKE, width=2),)
             panel.plot.series = (*self._chart_series, *extra)
             self._chart_compared = compared
-        panel.plot.data = frame.chart
-        panel.readout_text.content = frame.readout
+        if not same_columns(panel.plot.data, frame.chart):
+            panel.plot.data = frame.chart
+        if panel.readout_text.content != frame.readout:
+            panel.readout_text.content = frame.readout
         self.schedule(frame, solver)
         self.legend(frame.legend)
 
     def schedule(self, frame: Frame, solver) -> None:
-        """The schedule plot: the model's sigma and alphabar, the step shown, the times its sampler visits."""
+        """The schedule plot: the model's sigma and alphabar, the step shown (none while playing), the times its
+        sampler visits."""
         if self._schedule is None or self._schedule[0] is not solver:
             self._schedule = (solver, schedule_curves(solver.model.schedule.alphas_cumprod))
         view = frame.view
-        now = float(view.labels[frame.state])
-        self.panel.teach.schedule.data = schedule_plot_data(self._schedule[1], now, view.labels)
+        now = None if frame.light else float(view.labels[frame.state])
+        data = schedule_plot_data(self._schedule[1], now, view.labels)
+        if not same_columns(self.panel.teach.schedule.data, data):
+            self.panel.teach.schedule.data = data
 
     def legend(self, entries) -> None:
         entries = tuple(entries)

@@ -176,22 +176,24 @@ def schedule_curves(alphas_cumprod) -> ScheduleCurves:
     return ScheduleCurves(t=t, sigma=np.sqrt(1 - alpha_bar), alpha_bar=alpha_bar)
 
 
-def schedule_plot_data(curves: ScheduleCurves, now: float, visited) -> tuple[np.ndarray, ...]:
+def schedule_plot_data(curves: ScheduleCurves, now: float | None, visited) -> tuple[np.ndarray, ...]:
     """The uPlot's data: (t, sigma, alphabar, the sampler's visited times on sigma, the step shown on sigma).
 
-    `visited`: the diffusion times of the states the sampler lands on (scene.state_labels); `now` the slider's t.
+    `visited`: the diffusion times of the states the sampler lands on (scene.state_labels); `now` the slider's t
+    (None: no step marked, as while the denoising plays).
     Off those times the two marker series are NaN, so they draw as dots only.
     """
     t = curves.t
     last = int(t[-1])
-    if not 0 <= now <= last:
-        raise ValueError(f"now: expected a diffusion time in [0, {last}], got {now}")
+    if now is not None and not 0 <= now <= last:
+        raise ValueError(f"now: expected a diffusion time in [0, {last}] or None, got {now}")
     steps = np.full(t.shape, np.nan)
     chosen = np.clip(np.asarray(list(visited), dtype=np.int64), 0, last)
     steps[chosen] = curves.sigma[chosen]
     marker = np.full(t.shape, np.nan)
-    at = int(round(now))
-    marker[at] = curves.sigma[at]
+    if now is not None:
+        at = int(round(now))
+        marker[at] = curves.sigma[at]
     return t, curves.sigma, curves.alpha_bar, steps, marker
 
 

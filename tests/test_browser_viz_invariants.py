@@ -545,7 +545,62 @@ def test_every_claim_on_the_page_holds_through_a_seeded_sequence(browser, model,
         page.close()
 
 
-# ------------------------------------------------------------------ two defects seen by users, each its own case
+# ------------------------------------------------------------------ defects seen by users, each its own case
+
+
+# Each page frame while the denoising plays: the timestep slider's t, the readout's step line, and the tips of the
+# arms the scene holds (viser's batched spheres keep each instance's matrix in a texture, translation at 12..14).
+PLAYING_PROBE = """(seconds) => new Promise((done) => {
+  const rows = [], start = performance.now();
+  const tips = () => { const ref = window.__viserMutable.nodeRefFromName['/arm/tips']; let mesh = null;
+    (ref.current ?? ref).traverse((o) => { if (o.isInstancedMesh && mesh === null) mesh = o; });
+    const data = mesh.matricesTexture.image.data, out = [];
+    for (let i = 0; i < mesh.count; i++) out.push([data[16 * i + 12], data[16 * i + 13]]);
+    return out; };
+  const tick = (now) => {
+    const slider = document.querySelector('[role=slider]');
+    const step = /Step (\\d+) of (\\d+) \\(t = (\\d+)\\)/.exec(document.body.innerText);
+    rows.push([Number(slider.getAttribute('aria-valuenow')), step ? Number(step[3]) : null, tips()]);
+    if (now - start < seconds * 1000) requestAnimationFrame(tick); else done(rows);
+  };
+  requestAnimationFrame(tick);
+})"""
+
+
+def drawn_t(view, tips) -> int:
+    """The t of the state whose K tips the scene holds: the state whose tips these are, to float32 precision."""
+    tips = np.asarray(tips, dtype=np.float64)
+    distance = np.abs(view.joints[:, :, -1, :] - tips[None]).max(axis=(1, 2))  # (S+1,)
+    state = int(np.argmin(distance))
+    assert distance[state] < 1e-4, f"the scene's tips are no state of the solve (nearest {distance[state]:.2g} away)"
+    return int(view.labels[state])
+
+
+def test_the_slider_and_step_label_show_the_drawn_state_while_playing(browser, tmp_path):
+    """Frame by frame while the K = 4 denoising plays, the slider and the readout's step name the state whose arms
+    the scene holds; the slider may trail the scene by the one page frame the panel takes to render."""
+    solver, folder = shipped_model(PLANAR_MODEL)
+    with running_app(solver, animation_seconds=0.0, target=(-0.01, 1.2), checkpoint_folder=folder) as app:
+        settle(app)
+        page, errors = open_page_collecting_errors(browser, app, height=900)
+        app.panel.samples.value = 4
+        app.move_target((-0.01, 1.2))
+        settle(app)
+        page.wait_for_timeout(1000)
+        app.panel.duration.value = 3.0
+        app.toggle_play()
+        rows = page.evaluate(PLAYING_PROBE, 3.5)
+        view = app.solved.view
+        drawn = [drawn_t(view, tips) for _, _, tips in rows]
+        assert len(set(drawn)) > 10, f"the probe saw too few states drawn to judge: {sorted(set(drawn))}"
+        behind = []
+        for frame, (slider, step, _) in enumerate(rows):
+            shown = {drawn[frame], drawn[max(frame - 1, 0)]}  # this frame's state, or the frame before's
+            if slider not in shown or step not in shown:
+                behind.append(f"frame {frame}: slider t = {slider}, step t = {step}, drawn t = {drawn[frame]}")
+        assert not behind, f"{len(behind)} of {len(rows)} frames disagree: " + "; ".join(behind[:8])
+        assert not [e for e in errors if "pageerror" in e], errors
+        page.close()
 
 
 def test_a_planar_drag_reaches_any_point_of_the_reach(browser, tmp_path):
