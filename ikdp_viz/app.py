@@ -210,11 +210,11 @@ class VizApp:
         """Drawing loop, which lacks the joint-space fields of the solve on screen for this pair, highlight and grid:
         compute them on the solve worker (the newest job wins) and hand them back through the intent. Not while
         a newer solve is under way: it brings its own, and a job here would replace it unstarted."""
-        wanted = (solved, tuple(joints), highlight, count)
+        wanted = (tuple(joints), highlight, count)
         if self._solve_answered < self._solve_ticket:
             return
-        asked = self._fields_job
-        if asked is not None and asked[:4] == wanted and self.worker.is_newest(asked[4]):
+        asked = self._fields_job  # a solve is compared by identity: `==` on its arrays has no single truth
+        if asked is not None and asked[0] is solved and asked[1:4] == wanted and self.worker.is_newest(asked[4]):
             return  # asked already, and no job since has replaced it
         model = solved.request.model
 
@@ -222,7 +222,7 @@ class VizApp:
             return solve_fields(model, solved.view, joints, highlight, count, cancel)
 
         ticket = self.worker.submit(job, lambda _, fields: self.writer.ask(fields=(solved, fields)), self._failed)
-        self._fields_job = (*wanted, ticket)
+        self._fields_job = (solved, *wanted, ticket)
 
     def again(self) -> int | None:
         """Solve the solve on screen again from its very x_T with new step noise (teaching.py); the worker's ticket,

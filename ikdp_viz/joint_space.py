@@ -141,9 +141,9 @@ def clean_estimates_of_states(
 
     The sampling loop's own composition (ikdp.sampling), one denoiser call a set as it makes one a step:
     every set's condition computed in one call and shared by the set's rows, one workspace reused. Per
-    row this is what `clean_estimates` computes, to the bit (the workspace is the torch one, not the
-    compiled kernel), at a third of its cost: the condition network is most of the denoiser. One call
-    of all S * M rows was slower still on one CPU thread (its activations leave the cache).
+    row this is what `clean_estimates` computes (to float32 rounding: the workspace is the torch one,
+    not the compiled kernel), at a third of its cost: the condition network is most of the denoiser.
+    One call of all S * M rows was slower still on one CPU thread (its activations leave the cache).
     Raises Cancelled between sets once `cancel` is set.
     """
     model, denoiser = solver.model, solver.model.denoiser
@@ -244,41 +244,50 @@ class FieldAsk:
 
 @dataclass(frozen=True)
 class SolveFields:
-    """The denoiser's field at every state of one solve, on one grid over two joints."""
+    """The denoiser's field at the states of one solve, on one grid over two joints."""
 
     joints: tuple[int, int]
     count: int
     held_by: int | None  # the sample whose headings at each state hold the other joints; None: none is held (N = 2)
     starts: np.ndarray  # (M, 2) the grid poses on the two joints, in [-pi, pi)
-    arrows: np.ndarray  # (S+1, M, 2) state s's shortest x̂0 - x_t on the two joints
+    arrows: np.ndarray  # (S+1, M, 2) state s's shortest x̂0 - x_t on the two joints (NaN where not computed)
     timesteps: np.ndarray  # (S+1,) the 0-based timestep of each state's denoiser call (model_timestep)
+    computed: np.ndarray  # (S+1,) bool: the states whose arrows were computed
 
     def fits(self, joints: tuple[int, int], highlight: int, count: int) -> bool:
         """These are the arrows of the pair, held pose and grid asked for (else they would be stale)."""
         held = self.held_by is None or self.held_by == highlight
         return tuple(joints) == self.joints and count == self.count and held
 
-    def at(self, state: int) -> Field:
+    def at(self, state: int) -> Field | None:
+        """The field at `state`; None where it was not computed."""
+        if not self.computed[state]:
+            return None
         return Field(self.starts, self.arrows[state], int(self.timesteps[state]))
 
 
 def solve_fields(
     solver: ikdp.Solver, view, joints: tuple[int, int], highlight: int, count: int,
-    cancel: threading.Event | None = None,
+    cancel: threading.Event | None = None, states=None,
 ) -> SolveFields:  # fmt: skip
-    """The field at every state of a planar solve's `view` (planar_scene.SolveView): at state s the grid over
-    `joints` with the other joints at sample `highlight`'s headings then, at that state's denoiser call.
-    Run on the solve worker's thread, never the drawing loop's; Raises Cancelled once `cancel` is set."""
+    """The field at the states of a planar solve's `view` (planar_scene.SolveView), all of them or the indices
+    `states`: at state s the grid over `joints` with the other joints at sample `highlight`'s headings then, at
+    that state's denoiser call. Run on the solve worker's thread, never the drawing loop's; raises Cancelled once
+    `cancel` is set."""
     headings = link_headings(view.joints)  # (S+1, K, N)
     num_states, num_samples, num_joints = headings.shape
     if not 0 <= highlight < num_samples:
         raise ValueError(f"highlight: expected a sample of 0..{num_samples - 1}, got {highlight}")
+    computed = np.zeros(num_states, dtype=bool)
+    computed[slice(None) if states is None else np.asarray(states, dtype=np.int64)] = True
     grid = torus_grid(count)
-    poses = np.stack([grid_poses(grid, joints, held) for held in headings[:, highlight]])  # (S+1, M, N)
     timesteps = np.array([model_timestep(view.labels, state) for state in range(num_states)])
-    estimates = clean_estimates_of_states(solver, poses, timesteps, view.target, cancel)[..., list(joints)]
+    poses = np.stack([grid_poses(grid, joints, held) for held in headings[computed, highlight]])  # (S', M, N)
+    estimates = clean_estimates_of_states(solver, poses, timesteps[computed], view.target, cancel)[..., list(joints)]
+    arrows = np.full((num_states, len(grid), 2), np.nan)
+    arrows[computed] = shortest_difference(grid, estimates)
     held_by = None if num_joints == 2 else int(highlight)
-    return SolveFields(tuple(joints), count, held_by, grid, shortest_difference(grid, estimates), timesteps)
+    return SolveFields(tuple(joints), count, held_by, grid, arrows, timesteps, computed)
 
 
 # The panel's joint-space controls: the view's toggle and, for arms of more than two links, the two joints shown.

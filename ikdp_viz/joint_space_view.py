@@ -21,6 +21,7 @@ import ikdp
 from ikdp_viz.arm_kinds import arm_kind, arm_view, compare_view_class
 from ikdp_viz.camera import Extent, camera_over, fit_fields_of_view, move_cameras
 from ikdp_viz.joint_space import (
+    Field,
     FieldAsk,
     JointSpaceControls,
     SolveFields,
@@ -79,12 +80,13 @@ class JointSpaceNodes:
         """Fields computed for `solved` after it came on screen (the drawing loop's thread, from the intent)."""
         self._adopted = (solved, fields)
 
-    def fields_for(self, solved, joints: tuple[int, int], highlight: int, count: int) -> SolveFields | None:
-        """The fields of `solved` for this pair, held pose and grid: its own, or adopted since; None: not computed."""
+    def field_at(self, solved, state: int, joints: tuple[int, int], highlight: int, count: int) -> Field | None:
+        """The field of `solved` at `state` for this pair, held pose and grid, from its own fields or those adopted
+        since; None: not computed."""
         adopted = self._adopted[1] if self._adopted is not None and self._adopted[0] is solved else None
         for fields in (solved.fields, adopted):
-            if fields is not None and fields.fits(joints, highlight, count):
-                return fields
+            if fields is not None and fields.fits(joints, highlight, count) and fields.computed[state]:
+                return fields.at(state)
         return None
 
     def extent(self) -> Extent | None:
@@ -112,15 +114,13 @@ class JointSpaceNodes:
         joints = self.controls.joints()
         headings = link_headings(view.joints[state])  # (K, N)
         count = int(self.controls.grid.value)
-        fields = self.fields_for(solved, joints, highlight, count)
-        if fields is None:  # no arrows until they are computed: never another pair's or held pose's
-            self.last_field = None
+        field = self.last_field = self.field_at(solved, state, joints, highlight, count)
+        if field is None:  # no arrows until they are computed: never another pair's or held pose's
             if self.arrows.visible:
                 self.arrows.visible = False
             if self.ask_fields is not None:
                 self.ask_fields(solved, joints, highlight, count)
         else:
-            field = self.last_field = fields.at(state)
             self.arrows.points = arrow_segments(square, field.starts, field.arrows, count, ARROW_LIFT * reach)
             if not self.arrows.visible:
                 self.arrows.visible = True

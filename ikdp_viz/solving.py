@@ -120,7 +120,7 @@ class Solved:
     forward: bool = False  # the forward process of a solve's poses (teaching.py), not a denoising
     reaches_unconstrained: bool | None = None  # where no pose reaches under locks or obstacles: whether the same
     # noise solved without them reaches (they cause the miss) or not (they do not); None: not asked
-    fields: SolveFields | None = None  # the joint-space field at every state, as request.joint_space asked; None:
+    fields: SolveFields | None = None  # the joint-space fields of its states, as request.joint_space asked; None:
     # not asked (the view was off), or another pair, grid or highlight is shown now (joint_space_view.py asks anew)
 
     @property
@@ -276,13 +276,15 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
 
 
 def asked_fields(solved: Solved, ask: FieldAsk, cancel: threading.Event | None = None) -> SolveFields:
-    """The joint-space fields of every state of `solved` that `ask` names (worker thread). The held pose is the
-    sample the frame will highlight: follow mode's kept one, else the dropdown's choice; the network is the
-    session's model's, as the view names it."""
+    """The joint-space fields that `ask` names of the states `solved` will show (worker thread): every state of a
+    solve to animate, the final one of a drag's (drawn at once; a scrub asks for the others, joint_space_view.py).
+    The held pose is the sample the frame will highlight: follow mode's kept one, else the dropdown's choice;
+    the network is the session's model's, as the view names it."""
     highlight = solved.followed_sample
     if highlight is None:
         highlight = highlighted_sample(ask.highlight, solved)
-    return solve_fields(solved.request.model, solved.view, ask.joints, highlight, ask.count, cancel)
+    states = None if solved.request.animate else [solved.view.num_states - 1]
+    return solve_fields(solved.request.model, solved.view, ask.joints, highlight, ask.count, cancel, states)
 
 
 def kept_in_its_sample(arm, step: TrackStep) -> tuple[ikdp.SolveResult, int]:
