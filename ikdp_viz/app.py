@@ -221,7 +221,8 @@ class VizApp:
         def job(cancel):
             return solve_fields(model, solved.view, joints, highlight, count, cancel)
 
-        ticket = self.worker.submit(job, lambda _, fields: self.writer.ask(fields=(solved, fields)), self._failed)
+        # no on_error: a failed field job is printed, the square stays without arrows (no solve failed)
+        ticket = self.worker.submit(job, lambda _, fields: self.writer.ask(fields=(solved, fields)))
         self._fields_job = (solved, *wanted, ticket)
 
     def again(self) -> int | None:
