@@ -35,6 +35,7 @@ from ikdp_viz.camera import camera_fit, fit_fields_of_view
 from ikdp_viz.constraint_controls import ConstraintControls
 from ikdp_viz.downloads import Downloads
 from ikdp_viz.intent import StateAsked, TargetMove
+from ikdp_viz.joint_space import solve_fields
 from ikdp_viz.models import ModelChoices, checkpoint_arm_kind, list_checkpoints, switch_model
 from ikdp_viz.panel import DEFAULT_DURATION, build_panel
 from ikdp_viz.sampling_controls import SamplingControls
@@ -96,6 +97,9 @@ class VizApp:
         self.writer = SceneWriter(server, self.panel, solver, self.session.target, self.on_gizmo_update)
         self.writer.wait_for_tab = wait_for_tab  # the page opens on pure noise and plays once a tab is there
         self.writer.submit_solve = self._submit
+        self.writer.stage.joint_space.ask_fields = self._submit_fields
+        self._solve_ticket = self._solve_answered = 0  # the newest solve submitted, and the newest delivered or failed
+        self._fields_job: tuple | None = None  # (solved, joints, highlight, count, ticket) of the newest field job
         self.writer.on_changed = self._on_changed
         self.sampling = SamplingControls(self.panel, lambda: self.request_solve(), self.session)
         self.constraint_controls = ConstraintControls(
@@ -191,7 +195,35 @@ class VizApp:
                                            follow_from=self.constraint_controls.follow_from())  # fmt: skip
         if self.panel.new_seed.value:  # the new seed shown, so a good draw can be kept
             self.panel.seed.value = request.seed
-        return self.worker.submit(self._job(request), self._solved, self._failed)
+        return self._submit_request(request)
+
+    def _field_ask(self):
+        """The joint-space fields a solve asked now should bring with it (None: the view is off)."""
+        return self.writer.stage.joint_space.field_ask(self.solver, str(self.panel.highlight.value))
+
+    def _submit_request(self, request) -> int:
+        request = dataclasses.replace(request, joint_space=self._field_ask())
+        self._solve_ticket = self.worker.submit(self._job(request), self._solved, self._failed)
+        return self._solve_ticket
+
+    def _submit_fields(self, solved, joints: tuple[int, int], highlight: int, count: int) -> None:
+        """Drawing loop, which lacks the joint-space fields of the solve on screen for this pair, highlight and grid:
+        compute them on the solve worker (the newest job wins) and hand them back through the intent. Not while
+        a newer solve is under way: it brings its own, and a job here would replace it unstarted."""
+        wanted = (tuple(joints), highlight, count)
+        if self._solve_answered < self._solve_ticket:
+            return
+        asked = self._fields_job  # a solve is compared by identity: `==` on its arrays has no single truth
+        if asked is not None and asked[0] is solved and asked[1:4] == wanted and self.worker.is_newest(asked[4]):
+            return  # asked already, and no job since has replaced it
+        model = solved.request.model
+
+        def job(cancel):
+            return solve_fields(model, solved.view, joints, highlight, count, cancel)
+
+        # no on_error: a failed field job is printed, the square stays without arrows (no solve failed)
+        ticket = self.worker.submit(job, lambda _, fields: self.writer.ask(fields=(solved, fields)))
+        self._fields_job = (solved, *wanted, ticket)
 
     def again(self) -> int | None:
         """Solve the solve on screen again from its very x_T with new step noise (teaching.py); the worker's ticket,
@@ -202,7 +234,7 @@ class VizApp:
         request = dataclasses.replace(
             solved.request, rerun=solved.request.rerun + 1, arrival=time.perf_counter(), animate=True
         )
-        return self.worker.submit(self._job(request), self._solved, self._failed)
+        return self._submit_request(request)
 
     def noise_it(self, play: bool = True):
         """Show the forward process of the final poses on screen (teaching.py) and play it from t = 0 toward T;
@@ -246,9 +278,11 @@ class VizApp:
 
     def _solved(self, ticket: int, solved: Solved) -> None:
         """Worker thread: hand the finished solve to the drawing loop, nothing else."""
+        self._solve_answered = max(self._solve_answered, ticket)  # before the loop draws it and asks for fields
         self.writer.ask(solved=(solved, self.worker.is_newest(ticket)))
 
     def _failed(self, ticket: int, error: BaseException) -> None:
+        self._solve_answered = max(self._solve_answered, ticket)
         self.writer.ask(error=f"{type(error).__name__}: {error}")
 
     async def on_gizmo_update(self, event: viser.TransformControlsEvent) -> None:
@@ -334,7 +368,10 @@ class VizApp:
             return
         self.writer.ask(**fields)
         if event.client is None:
+            asked = self._fields_job
             self.writer.flush()
+            if self._fields_job is not asked:  # the picture asked for joint-space arrows: they are part of it
+                self.wait_until_drawn()
 
     def draw_prior(self, wait: bool = True) -> np.ndarray:
         """Draw K poses from the model's training prior and show them; returns their joints (K, N+1, 2 or 3)."""

@@ -41,6 +41,7 @@ class Intent:
     target: TargetMove | None = None  # the newest target's place
     solve: tuple | None = None  # (arrival, animate): solve the newest target with the panel's settings
     solved: tuple | None = None  # (Solved, newest): the newest finished solve, to draw in place of the one shown
+    fields: tuple | None = None  # (Solved, joint_space.SolveFields): joint-space fields computed for a solve on screen
     replay: np.ndarray | None = None  # a drag ended at this target: play its solve from t = T once drawn
     prior: np.ndarray | None = None  # (K, N+1, d) poses drawn from the prior, shown until the next solve
     error: str | None = None  # why the newest solve failed
@@ -58,6 +59,7 @@ class Intent:
                     self.target,
                     self.solve,
                     self.solved,
+                    self.fields,
                     self.replay,
                     self.prior,
                     self.error,

@@ -7,14 +7,19 @@ shortest way from one angle to another is taken across the seam when that is sho
 The field is what the denoiser does to a grid of poses at one timestep t: each grid
 pose enters as x_t (its own encoding, `representation.encode`), the denoiser and the
 schedule give x̂0 exactly as in the sampling loop (ikdp.sampling), and the arrow is
-the wrapped difference x̂0 - x_t in headings. No viser here.
+the wrapped difference x̂0 - x_t in headings. A solve's fields, one per state
+(`SolveFields`), are computed on the solve worker's thread with the solve, or later
+for the solve on screen (`solve_fields`); the drawing loop only draws them.
+No viser here but the panel's controls.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import torch
@@ -23,6 +28,7 @@ import viser
 import ikdp
 from ikdp.arm import PlanarArm
 from ikdp_viz.readouts import JOINT_SPACE_HINT
+from ikdp_viz.solve_worker import Cancelled
 
 BOUNDARY_TOLERANCE = 1e-9  # |cos q2| within this of 1: the target is on the reach boundary, one solution
 CURVE_POINTS = 256  # samples of a solution curve
@@ -127,6 +133,48 @@ def clean_estimates(solver: ikdp.Solver, poses, timestep: int, target) -> np.nda
     return clean_estimates_of_vectors(solver, x, timestep, target).double().cpu().numpy()
 
 
+@torch.inference_mode()
+def clean_estimates_of_states(
+    solver: ikdp.Solver, poses, timesteps, target, cancel: threading.Event | None = None
+) -> np.ndarray:
+    """x̂0 (S, M, N) for S sets of M poses of headings (S, M, N), set s taken as x_t at the 0-based timesteps[s].
+
+    The sampling loop's own composition (ikdp.sampling), one denoiser call a set as it makes one a step:
+    every set's condition computed in one call and shared by the set's rows, one workspace reused. Per
+    row this is what `clean_estimates` computes (to float32 rounding: the workspace is the torch one,
+    not the compiled kernel), at a third of its cost: the condition network is most of the denoiser.
+    One call of all S * M rows was slower still on one CPU thread (its activations leave the cache).
+    Raises Cancelled between sets once `cancel` is set.
+    """
+    model, denoiser = solver.model, solver.model.denoiser
+    poses = np.asarray(poses, dtype=np.float64)
+    timesteps = [int(timestep) for timestep in timesteps]
+    if poses.ndim != 3 or len(poses) != len(timesteps):
+        raise ValueError(f"poses: expected (S, M, N) for {len(timesteps)} timesteps, got shape {poses.shape}")
+    for timestep in timesteps:
+        if not 0 <= timestep < solver.timesteps:
+            raise ValueError(f"timesteps: expected 0 <= t < {solver.timesteps}, got {timestep}")
+    rows = poses.shape[1]
+    targets = solver.arm.validate_targets(np.asarray(target, dtype=np.float64).reshape(1, -1)).to(solver.device)
+    targets = solver.arm.clamp_to_workspace(targets)
+    times = torch.as_tensor(timesteps, dtype=torch.long, device=solver.device)
+    conditions = denoiser.condition(times, targets.expand(len(timesteps), -1))  # (S, ...)
+    row_targets = targets.expand(rows, -1)
+    headings = torch.as_tensor(poses, dtype=torch.float32, device=solver.device)
+    make_workspace = getattr(denoiser, "workspace", None)  # as the sampling loop asks it: a denoiser's own option
+    workspace = None if make_workspace is None else make_workspace(rows, headings, compiled=False)
+    denoise = denoiser.denoise if workspace is None else partial(denoiser.denoise, workspace=workspace)
+    estimates = np.empty(poses.shape)
+    for index, timestep in enumerate(timesteps):
+        if cancel is not None and cancel.is_set():
+            raise Cancelled
+        x = model.representation.encode(headings[index])  # (M, D)
+        output = denoise(x, row_targets, conditions[index : index + 1])  # the workspace's buffer: used at once
+        clean = model.schedule.predict_clean(output, timestep, x, model.config.prediction)
+        estimates[index] = model.representation.decode(clean).double().cpu().numpy()
+    return estimates
+
+
 @dataclass(frozen=True)
 class Field:
     """The denoiser's arrows on a grid over two joints at one timestep."""
@@ -166,6 +214,80 @@ class FieldCache:
 
     def clear(self) -> None:
         self._fields.clear()
+
+
+def link_headings(joints: np.ndarray) -> np.ndarray:
+    """Joint positions (..., N+1, 2), base first -> the absolute heading of each link, (..., N)."""
+    bones = np.diff(np.asarray(joints, dtype=np.float64), axis=-2)
+    return np.arctan2(bones[..., 1], bones[..., 0])
+
+
+def model_timestep(labels: np.ndarray, state: int) -> int:
+    """The 0-based timestep the denoiser is called at on state `state`: the call that makes the next state.
+
+    labels (S+1,) are scene.state_labels: state s < S was reached at diffusion time labels[s], and the
+    sampler's step from it runs the denoiser at labels[s] - 1. The final state shows the last call's field.
+    """
+    last_call = len(labels) - 2
+    return int(labels[min(state, last_call)]) - 1
+
+
+@dataclass(frozen=True)
+class FieldAsk:
+    """The fields a solve asked with the joint-space view shown should bring: two joints, the grid, and the
+    highlight dropdown's choice, whose sample holds the other joints (resolved once the solve is known)."""
+
+    joints: tuple[int, int]
+    count: int  # arrows per side of the square
+    highlight: str  # "best" or a sample's number from 1 (frame.highlighted_sample)
+
+
+@dataclass(frozen=True)
+class SolveFields:
+    """The denoiser's field at the states of one solve, on one grid over two joints."""
+
+    joints: tuple[int, int]
+    count: int
+    held_by: int | None  # the sample whose headings at each state hold the other joints; None: none is held (N = 2)
+    starts: np.ndarray  # (M, 2) the grid poses on the two joints, in [-pi, pi)
+    arrows: np.ndarray  # (S+1, M, 2) state s's shortest x̂0 - x_t on the two joints (NaN where not computed)
+    timesteps: np.ndarray  # (S+1,) the 0-based timestep of each state's denoiser call (model_timestep)
+    computed: np.ndarray  # (S+1,) bool: the states whose arrows were computed
+
+    def fits(self, joints: tuple[int, int], highlight: int, count: int) -> bool:
+        """These are the arrows of the pair, held pose and grid asked for (else they would be stale)."""
+        held = self.held_by is None or self.held_by == highlight
+        return tuple(joints) == self.joints and count == self.count and held
+
+    def at(self, state: int) -> Field | None:
+        """The field at `state`; None where it was not computed."""
+        if not self.computed[state]:
+            return None
+        return Field(self.starts, self.arrows[state], int(self.timesteps[state]))
+
+
+def solve_fields(
+    solver: ikdp.Solver, view, joints: tuple[int, int], highlight: int, count: int,
+    cancel: threading.Event | None = None, states=None,
+) -> SolveFields:  # fmt: skip
+    """The field at the states of a planar solve's `view` (planar_scene.SolveView), all of them or the indices
+    `states`: at state s the grid over `joints` with the other joints at sample `highlight`'s headings then, at
+    that state's denoiser call. Run on the solve worker's thread, never the drawing loop's; raises Cancelled once
+    `cancel` is set."""
+    headings = link_headings(view.joints)  # (S+1, K, N)
+    num_states, num_samples, num_joints = headings.shape
+    if not 0 <= highlight < num_samples:
+        raise ValueError(f"highlight: expected a sample of 0..{num_samples - 1}, got {highlight}")
+    computed = np.zeros(num_states, dtype=bool)
+    computed[slice(None) if states is None else np.asarray(states, dtype=np.int64)] = True
+    grid = torus_grid(count)
+    timesteps = np.array([model_timestep(view.labels, state) for state in range(num_states)])
+    poses = np.stack([grid_poses(grid, joints, held) for held in headings[computed, highlight]])  # (S', M, N)
+    estimates = clean_estimates_of_states(solver, poses, timesteps[computed], view.target, cancel)[..., list(joints)]
+    arrows = np.full((num_states, len(grid), 2), np.nan)
+    arrows[computed] = shortest_difference(grid, estimates)
+    held_by = None if num_joints == 2 else int(highlight)
+    return SolveFields(tuple(joints), count, held_by, grid, arrows, timesteps, computed)
 
 
 # The panel's joint-space controls: the view's toggle and, for arms of more than two links, the two joints shown.

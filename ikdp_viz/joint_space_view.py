@@ -4,7 +4,9 @@ Five nodes beside the workspace, all batched: the square's frame and grid lines,
 denoiser's arrows at the step shown, the solution set (red crosses, or a red curve),
 the K samples at the step shown (a point cloud coloured like the arms) and a white
 backing that hides the ground grid under the square; and three text labels. They
-exist only while the panel's toggle is on.
+exist only while the panel's toggle is on. The arrows are computed on the solve
+worker's thread, with the solve or later for the solve on screen (joint_space.SolveFields);
+this thread draws them only where they are the pair, grid and held pose shown.
 """
 
 from __future__ import annotations
@@ -18,7 +20,15 @@ import viser
 import ikdp
 from ikdp_viz.arm_kinds import arm_kind, arm_view, compare_view_class
 from ikdp_viz.camera import Extent, camera_over, fit_fields_of_view, move_cameras
-from ikdp_viz.joint_space import FieldCache, JointSpaceControls, two_link_solutions, wrap_to_square
+from ikdp_viz.joint_space import (
+    Field,
+    FieldAsk,
+    JointSpaceControls,
+    SolveFields,
+    link_headings,
+    two_link_solutions,
+    wrap_to_square,
+)
 from ikdp_viz.readouts import branch_name, held_text, joint_space_title
 from ikdp_viz.style import ARROW, BACKING, FRAME_STRONG, FRAME_WEAK, JOINT_SPACE_DOT, SOLUTION
 
@@ -34,7 +44,10 @@ class JointSpaceNodes:
     def __init__(self, server: viser.ViserServer, controls: JointSpaceControls):
         self.server, self.controls = server, controls
         self.clear_of: float | None = None  # x the square stays right of (the arm view's ground grid edge)
-        self.fields = FieldCache()
+        # ask_fields(solved, joints, highlight, count): the app's job for fields the solve on screen lacks, on the
+        # solve worker (this thread never runs the network); None: none asked (the arrows wait for the solve's own)
+        self.ask_fields = None
+        self._adopted: tuple | None = None  # (Solved, SolveFields) computed for a solve after it came on screen
         self.frame = self.arrows = self.solutions = self.samples = self.backing = None
         self.labels: list = []
         self.held = None  # the label under the title: what the other joints are held at (N > 2)
@@ -51,7 +64,30 @@ class JointSpaceNodes:
     def reset(self) -> None:
         """The model changed: its view goes (the next draw builds the new arm's), its fields are stale."""
         self._remove()
-        self.fields.clear()
+        self._adopted = None
+
+    def wanted(self, solver: ikdp.Solver) -> bool:
+        """The view is drawn for this model now: a planar arm, the panel's toggle on."""
+        return arm_kind(solver).draws_joint_space and bool(self.controls.show.value) and solver.num_links >= 2
+
+    def field_ask(self, solver: ikdp.Solver, highlight: str) -> FieldAsk | None:
+        """The fields a solve asked now should bring (the highlight dropdown's `highlight`); None: the view is off."""
+        if not self.wanted(solver):
+            return None
+        return FieldAsk(self.controls.joints(), int(self.controls.grid.value), highlight)
+
+    def adopt(self, solved, fields: SolveFields) -> None:
+        """Fields computed for `solved` after it came on screen (the drawing loop's thread, from the intent)."""
+        self._adopted = (solved, fields)
+
+    def field_at(self, solved, state: int, joints: tuple[int, int], highlight: int, count: int) -> Field | None:
+        """The field of `solved` at `state` for this pair, held pose and grid, from its own fields or those adopted
+        since; None: not computed."""
+        adopted = self._adopted[1] if self._adopted is not None and self._adopted[0] is solved else None
+        for fields in (solved.fields, adopted):
+            if fields is not None and fields.fits(joints, highlight, count) and fields.computed[state]:
+                return fields.at(state)
+        return None
 
     def extent(self) -> Extent | None:
         """The square's part of the plane while it is shown (the drawing loop frames the camera over it)."""
@@ -67,8 +103,7 @@ class JointSpaceNodes:
             return
         num_joints = solver.num_links
         self.controls.fit(num_joints)
-        wanted = self.controls.show.value and num_joints >= 2
-        if not wanted:
+        if not self.wanted(solver):
             if self.shown:
                 self._remove()
             return
@@ -79,10 +114,16 @@ class JointSpaceNodes:
         joints = self.controls.joints()
         headings = link_headings(view.joints[state])  # (K, N)
         count = int(self.controls.grid.value)
-        timestep = model_timestep(view.labels, state)
-        field = self.fields.field(solver, view.target, timestep, joints, headings[highlight], count)
-        self.last_field = field
-        self.arrows.points = arrow_segments(square, field.starts, field.arrows, count, ARROW_LIFT * reach)
+        field = self.last_field = self.field_at(solved, state, joints, highlight, count)
+        if field is None:  # no arrows until they are computed: never another pair's or held pose's
+            if self.arrows.visible:
+                self.arrows.visible = False
+            if self.ask_fields is not None:
+                self.ask_fields(solved, joints, highlight, count)
+        else:
+            self.arrows.points = arrow_segments(square, field.starts, field.arrows, count, ARROW_LIFT * reach)
+            if not self.arrows.visible:
+                self.arrows.visible = True
         self.samples.points = square.place(headings[:, list(joints)], SAMPLE_LIFT * reach).astype(np.float32)
         self.samples.colors = np.asarray(frame.palette.dots, dtype=np.uint8)
         if self._solutions_key != (id(solved), joints):
@@ -297,22 +338,6 @@ def curve_segments(square: Square, curve: np.ndarray, lift: float) -> np.ndarray
     jumps = np.abs(following - curve).max(axis=-1) > math.pi  # the next point is across an edge
     ends = np.stack((curve, following), axis=1)[~jumps]  # (M, 2, 2)
     return square.place(ends, lift)
-
-
-def link_headings(joints: np.ndarray) -> np.ndarray:
-    """Joint positions (..., N+1, 2), base first -> the absolute heading of each link, (..., N)."""
-    bones = np.diff(np.asarray(joints, dtype=np.float64), axis=-2)
-    return np.arctan2(bones[..., 1], bones[..., 0])
-
-
-def model_timestep(labels: np.ndarray, state: int) -> int:
-    """The 0-based timestep the denoiser is called at on state `state`: the call that makes the next state.
-
-    labels (S+1,) are scene.state_labels: state s < S was reached at diffusion time labels[s], and the
-    sampler's step from it runs the denoiser at labels[s] - 1. The final state shows the last call's field.
-    """
-    last_call = len(labels) - 2
-    return int(labels[min(state, last_call)]) - 1
 
 
 # Everything drawn in the scene, as components: the arm view and the side views beside it, and the one camera.

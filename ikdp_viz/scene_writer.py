@@ -136,6 +136,9 @@ class SceneWriter:
             self.error, intent.redraw = intent.error, True
         if intent.solved is not None:
             self._show_solve(*intent.solved)
+        if intent.fields is not None and intent.fields[0] is self.solved:  # else for a solve no longer on screen
+            self.stage.joint_space.adopt(*intent.fields)
+            intent.redraw = True
         if intent.replay is not None:
             self._replay(intent.replay)
         if intent.state is not None:

@@ -25,6 +25,8 @@ from ikdp.tracking import TrackStep, track_step
 from ikdp_viz.arm_kinds import arm_kind
 from ikdp_viz.chain_scene import METRES_PER_RADIAN, ChainView
 from ikdp_viz.constraint_scene import NEAR_WEIGHT, checkable, final_violations, partial_target, state_violation
+from ikdp_viz.frame import highlighted_sample
+from ikdp_viz.joint_space import FieldAsk, SolveFields, solve_fields
 from ikdp_viz.planar_scene import SolveView
 from ikdp_viz.solve_worker import Cancelled
 from ikdp_viz.student import (
@@ -71,6 +73,7 @@ class SolveRequest:
     target_clamped: bool = False  # the point asked for lay outside the workspace (a robot's reach ball): `target` is
     # the nearest point inside it
     rerun: int = 0  # again from the same x_T: run r > 0 keeps the seed's x_T and reseeds the step noise (teaching.py)
+    joint_space: FieldAsk | None = None  # the joint-space view is shown: the solve brings its fields; None: it is off
 
     @property
     def model(self) -> ikdp.Solver:
@@ -117,6 +120,8 @@ class Solved:
     forward: bool = False  # the forward process of a solve's poses (teaching.py), not a denoising
     reaches_unconstrained: bool | None = None  # where no pose reaches under locks or obstacles: whether the same
     # noise solved without them reaches (they cause the miss) or not (they do not); None: not asked
+    fields: SolveFields | None = None  # the joint-space fields of its states, as request.joint_space asked; None:
+    # not asked (the view was off), or another pair, grid or highlight is shown now (joint_space_view.py asks anew)
 
     @property
     def reaches(self) -> bool:
@@ -250,7 +255,7 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
         compare, compare_trail = arm_kind(solver).drawable(other, solver, request.target)
     violation = state_violation(request.solver, checked, result) if checkable(checked) else None
     final = final_violations(request.solver, checked, result) if violation is not None else ()
-    return Solved(
+    solved = Solved(
         request,
         view,
         trail,
@@ -265,6 +270,21 @@ def solve(request: SolveRequest, cancel: threading.Event | None = None, preview=
         followed_sample=followed_sample,
         reaches_unconstrained=reaches_unconstrained,
     )
+    if request.joint_space is None:
+        return solved
+    return dataclasses.replace(solved, fields=asked_fields(solved, request.joint_space, cancel))
+
+
+def asked_fields(solved: Solved, ask: FieldAsk, cancel: threading.Event | None = None) -> SolveFields:
+    """The joint-space fields that `ask` names of the states `solved` will show (worker thread): every state of a
+    solve to animate, the final one of a drag's (drawn at once; a scrub asks for the others, joint_space_view.py).
+    The held pose is the sample the frame will highlight: follow mode's kept one, else the dropdown's choice;
+    the network is the session's model's, as the view names it."""
+    highlight = solved.followed_sample
+    if highlight is None:
+        highlight = highlighted_sample(ask.highlight, solved)
+    states = None if solved.request.animate else [solved.view.num_states - 1]
+    return solve_fields(solved.request.model, solved.view, ask.joints, highlight, ask.count, cancel, states)
 
 
 def kept_in_its_sample(arm, step: TrackStep) -> tuple[ikdp.SolveResult, int]:

@@ -19,6 +19,8 @@ from ikdp_viz.joint_space import (
     clean_estimates,
     clean_estimates_of_vectors,
     grid_poses,
+    link_headings,
+    model_timestep,
     shortest_difference,
     torus_grid,
     two_link_solutions,
@@ -28,8 +30,6 @@ from ikdp_viz.joint_space_view import (
     arrow_segments,
     cross_segments,
     curve_segments,
-    link_headings,
-    model_timestep,
     square_beside,
 )
 from ikdp_viz.planar_scene import state_labels
