@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 from functools import partial
 
@@ -32,7 +31,6 @@ from ikdp_viz.solve_worker import Cancelled
 
 BOUNDARY_TOLERANCE = 1e-9  # |cos q2| within this of 1: the target is on the reach boundary, one solution
 CURVE_POINTS = 256  # samples of a solution curve
-FIELD_CACHE_SIZE = 256  # fields kept; scrubbing back and forth recomputes none of them
 
 
 def wrap_to_square(angles) -> np.ndarray:
@@ -184,36 +182,12 @@ class Field:
     timestep: int  # the 0-based timestep the denoiser was called at
 
 
-class FieldCache:
-    """Fields by (model, target, t, joints, held pose, grid): scrubbing the slider back and forth costs nothing."""
-
-    def __init__(self, size: int = FIELD_CACHE_SIZE):
-        self._fields: OrderedDict[tuple, Field] = OrderedDict()
-        self._size = size
-
-    def field(self, solver: ikdp.Solver, target, timestep: int, joints: tuple[int, int], held, count: int) -> Field:
-        """The field at `timestep` on a count x count grid over `joints`, the other joints at `held` (N,)."""
-        held = np.asarray(held, dtype=np.float64)
-        free = np.ones(len(held), dtype=bool)
-        free[list(joints)] = False
-        key = (
-            id(solver), tuple(np.asarray(target, dtype=np.float64).round(12)), int(timestep), tuple(joints),
-            tuple(held[free].round(12)), count,
-        )  # fmt: skip
-        if key in self._fields:
-            self._fields.move_to_end(key)
-            return self._fields[key]
-        grid = torus_grid(count)
-        poses = grid_poses(grid, joints, held)
-        estimates = clean_estimates(solver, poses, int(timestep), target)[:, list(joints)]
-        field = Field(grid, shortest_difference(grid, estimates), int(timestep))
-        self._fields[key] = field
-        while len(self._fields) > self._size:
-            self._fields.popitem(last=False)
-        return field
-
-    def clear(self) -> None:
-        self._fields.clear()
+def field_at(solver: ikdp.Solver, target, timestep: int, joints: tuple[int, int], held, count: int) -> Field:
+    """The field at `timestep` on a count x count grid over `joints`, the other joints at `held` (N,): one state's
+    arrows computed alone (the viewer computes a solve's with `clean_estimates_of_states`, states together)."""
+    grid = torus_grid(count)
+    estimates = clean_estimates(solver, grid_poses(grid, joints, held), int(timestep), target)[:, list(joints)]
+    return Field(grid, shortest_difference(grid, estimates), int(timestep))
 
 
 def link_headings(joints: np.ndarray) -> np.ndarray:

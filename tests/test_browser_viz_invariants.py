@@ -491,23 +491,8 @@ def shipped_model(model: str):
     return solver, shipped_checkpoint(model).parent
 
 
-# Sequences that meet a defect in some runs only (it depends on what the page has drawn when a pause lands): not
-# strict, so a run that misses it passes, and the report still names each time it is met.
-INTERMITTENT_DEFECTS: dict[tuple[str, int], str] = {
-    (PLANAR_MODEL, 1): "met in full suite runs, not alone: after a model switch, x̂0 shown and 'played for 1.26 s and "
-    "paused', the readout puts the highlighted tip 38 px from the target and the drawn tip is 45 px from it",
-}
-
-
-def sequence(model: str, seed: int):
-    if (model, seed) in INTERMITTENT_DEFECTS:
-        reason = INTERMITTENT_DEFECTS[model, seed]
-        return pytest.param(model, seed, marks=pytest.mark.xfail(strict=False, reason=reason))
-    return (model, seed)
-
-
 def sequences() -> list:
-    return [sequence(model, seed) for model in (PLANAR_MODEL, ROBOT_MODEL) for seed in seeds()]
+    return [(model, seed) for model in (PLANAR_MODEL, ROBOT_MODEL) for seed in seeds()]
 
 
 @pytest.mark.parametrize(("model", "seed"), sequences())

@@ -42,7 +42,7 @@ def same(arrows, other) -> bool:
 
 
 def direct_arrows(solver, view, state: int, joints, highlight: int, count: int) -> np.ndarray:
-    """The field at `state` as one call for that state alone computes it (joint_space.FieldCache's way)."""
+    """The field at `state` as one call for that state alone computes it (joint_space.field_at's way)."""
     grid = torus_grid(count)
     held = link_headings(view.joints[state])[highlight]
     estimates = clean_estimates(solver, grid_poses(grid, joints, held), model_timestep(view.labels, state), view.target)
