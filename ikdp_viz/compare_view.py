@@ -20,11 +20,9 @@ from ikdp_viz.chain_scene import skeleton_segments
 from ikdp_viz.planar_scene import (
     arm_placement,
     circle_segments,
-    emphasis_colors,
     follows_one,
     line_colors,
     nearest_state,
-    trail_colors,
     trail_rows,
     trail_until,
 )
@@ -46,8 +44,7 @@ class CompareNodes:
         self.server = server
         self._reach: float | None = None  # the workspace radius while shown
         self.nodes: dict = {}
-        self._solved_id: int | None = None  # the solve whose colours are cached
-        self._colors = self._trail_colors = None
+        self._titled: int | None = None  # the solve whose titles and cross are written
 
     @property
     def shown(self) -> bool:
@@ -69,11 +66,9 @@ class CompareNodes:
         reach = float(solver.reach[1])
         if not self.shown:
             self._build(solver, solved, reach, sizes)
-        key = (id(solved), highlight, trail_of)
-        if self._solved_id != key:
-            self._colors, ramp = emphasis_colors(compare.num_states, compare.num_samples, highlight, trail_of)
-            self._trail_colors = trail_colors(ramp, compare.num_links)
-            self._solved_id = key
+        arm_colors, segment_colors = frame.palette.compare_arms, frame.palette.compare_trail  # the frame's colours
+        if self._titled != id(solved):
+            self._titled = id(solved)
             request = solved.request
             self.nodes["title"].text = request.compare_title(compare.num_states - 1)
             main_steps = solved.view.num_states - 1
@@ -84,13 +79,13 @@ class CompareNodes:
         shift = np.array([offset(reach), 0.0, 0.0])
         rows = trail_rows(compare.num_samples, compare.num_links, highlight, trail_of)
         if show_trail:
-            points, colors = trail_until(solved.compare_trail[:, rows], self._trail_colors[:, rows], shown)
+            points, colors = trail_until(solved.compare_trail[:, rows], segment_colors[:, rows], shown)
             self.nodes["trail"].points, self.nodes["trail"].colors = points + shift.astype(np.float32), colors
         self.nodes["trail"].visible = show_trail
         placement = arm_placement(compare.joints[shown], height=0.25 * sizes.joint, raised=highlight,
                                   lift=2.0 * sizes.joint)  # fmt: skip
         self.nodes["links"].points = placement.link_segments + shift
-        per_link = line_colors(np.repeat(self._colors[shown], compare.num_links, axis=0))[:, None]
+        per_link = line_colors(np.repeat(arm_colors[shown], compare.num_links, axis=0))[:, None]
         self.nodes["links"].colors = np.broadcast_to(per_link, (compare.num_samples * compare.num_links, 2, 3))
         from ikdp_viz.planar_view import OTHER_PIXELS
         from ikdp_viz.style import ARM_PIXELS
@@ -104,7 +99,7 @@ class CompareNodes:
         joints = compare.num_links + 1
         followed_joints = placement.joint_positions[highlight * joints : (highlight + 1) * joints]
         self.nodes["joints"].batched_positions = followed_joints + shift
-        self.nodes["joints"].batched_colors = np.broadcast_to(self._colors[shown][highlight], (joints, 3))
+        self.nodes["joints"].batched_colors = np.broadcast_to(arm_colors[shown][highlight], (joints, 3))
 
     def _build(self, solver, solved, reach: float, sizes) -> None:
         from ikdp_viz import robot_meshes
@@ -153,7 +148,7 @@ class CompareNodes:
     def remove(self) -> None:
         for node in self.nodes.values():
             node.remove()
-        self.nodes, self._solved_id, self._reach = {}, None, None
+        self.nodes, self._titled, self._reach = {}, None, None
 
 
 # Same noise, two samplers, for a robot: the second sampler's skeletons beside the robot.

@@ -19,15 +19,18 @@ import math
 import threading
 from dataclasses import dataclass
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-import viser
 
 import ikdp
 from ikdp.arm import PlanarArm
 from ikdp_viz.readouts import JOINT_SPACE_HINT
 from ikdp_viz.solve_worker import Cancelled
+
+if TYPE_CHECKING:  # the controls' types only: the solve worker imports this file, and it needs no viser
+    import viser
 
 BOUNDARY_TOLERANCE = 1e-9  # |cos q2| within this of 1: the target is on the reach boundary, one solution
 CURVE_POINTS = 256  # samples of a solution curve

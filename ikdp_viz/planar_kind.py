@@ -50,6 +50,8 @@ class PlanarPalette:
     trail: np.ndarray  # (S+1, K*N, 2, 3) uint8 each trail segment's colour
     tips: np.ndarray  # (S+1, 3) uint8 the tips' colour at each state
     dots: np.ndarray  # (K, 3) uint8 the joint-space dots: dark at every state, the highlighted one blue
+    compare_arms: np.ndarray | None = None  # (S'+1, K, 3) uint8 the compared sampler's arms (None: no comparison)
+    compare_trail: np.ndarray | None = None  # (S'+1, K*N, 2, 3) uint8 its trail segments' colours
 
 
 class PlanarKind:
@@ -158,9 +160,15 @@ class PlanarKind:
             arms = sample_tints(solved.state_violation, highlight)
         dots = np.broadcast_to(np.array(JOINT_SPACE_DOT, np.uint8), (view.num_samples, 3)).copy()
         dots[highlight] = ACCENT_DARK
+        compare_arms = compare_trail = None
+        compare = getattr(solved, "compare", None)
+        if compare is not None:  # the same emphasis over the compared sampler's own states
+            compare_arms, compare_ramp = emphasis_colors(compare.num_states, compare.num_samples, highlight, trail_of)
+            compare_trail = planar_scene.trail_colors(compare_ramp, compare.num_links)
         return PlanarPalette(
             arms=arms, trail=planar_scene.trail_colors(ramp, view.num_links),
             tips=fade_colors(view.num_states, TIP_FAINT, TIP_DARK), dots=dots,
+            compare_arms=compare_arms, compare_trail=compare_trail,
         )  # fmt: skip
 
     def solve_text(self, solved, state: int, highlight: int, reason: str, error: str | None) -> str:

@@ -8,7 +8,7 @@ from viz_helpers import running_app, settle
 
 import ikdp
 from ikdp_viz.compare_view import offset
-from ikdp_viz.planar_scene import compare_curve
+from ikdp_viz.planar_scene import compare_curve, line_colors
 
 
 @pytest.fixture
@@ -56,3 +56,21 @@ def test_comparing_a_sampler_with_itself_is_no_comparison(app):
     app.panel.learn.compare.value = "ddim"
     settle(app)
     assert app.solved.compare is None and not app.writer.stage.compare.shown
+
+
+def test_the_compared_arms_take_their_colours_from_the_frame(app):
+    """The drawing loop's frame holds the comparison's colours (its palette), as it holds the main arms': the view
+    draws those, so a frame drawn with other colours shows them."""
+    import dataclasses
+
+    app.panel.learn.compare.value = "ddim"
+    settle(app)
+    palette = app.writer.frame.palette
+    compare = app.solved.compare
+    assert palette.compare_arms.shape == (compare.num_states, compare.num_samples, 3)
+    assert palette.compare_trail.shape[:2] == (compare.num_states, compare.num_samples * compare.num_links)
+    marked = dataclasses.replace(palette, compare_arms=np.full_like(palette.compare_arms, 7))
+    frame = dataclasses.replace(app.writer.frame, palette=marked)
+    app.writer.run(lambda writer: writer.draw_scene(frame))
+    links = app.writer.stage.compare.nodes["links"].colors
+    assert np.all(links == line_colors(np.full(3, 7, np.uint8))), np.unique(links)  # as lines take colours
