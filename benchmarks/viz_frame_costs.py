@@ -9,13 +9,15 @@ as an animation does (states 40 to 80 in a loop, the frame a playing animation d
 the variants below take turns in a new order each round, `--rounds` times: one 3 s count
 swings by 10 ms a frame here, so only medians over many rounds resolve a few ms.
 
-  as shipped          the playing frame: 6 trail states; the slider and readout with every state, the chart and
-                      schedule plot standing (a playing frame marks no state on them)
+  as shipped          the playing frame of the view the command line opens on (no trail, the highlighted sample
+                      followed); the slider and readout with every state, the chart and schedule plot standing
+                      (a playing frame marks no state on them)
   chart every state   the chart's and schedule plot's markers moved with every state too
-  4 trail states      a lighter trail
+  trail shown         "show trail" on: the followed sample's last 6 states
+  half-length grid    a grid line every half bone length, not every bone length (a hidden node, swapped in)
   80-face spheres     the joints and tips as 80-face spheres, not the shipped 20 (an extra hidden node each, swapped in)
   nothing written     the last frame stands; only a tiny message keeps the page drawing
-  nothing drawn       every node hidden, the same tiny message
+  nothing drawn       every node hidden, the same tiny message: what the page costs with nothing of ours to draw
 
 Prints a table and writes JSON.
 """
@@ -34,7 +36,10 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-VARIANTS = ("as shipped", "chart every state", "4 trail states", "80-face spheres", "nothing written", "nothing drawn")
+VARIANTS = (
+    "as shipped", "chart every state", "trail shown", "half-length grid", "80-face spheres", "nothing written",
+    "nothing drawn",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -55,23 +60,25 @@ class CostsConfig:
 def measure(config: CostsConfig) -> dict[str, list[float]]:
     import dataclasses
 
+    import numpy as np
     import torch
     import trimesh
     import viser
     from playwright.sync_api import sync_playwright
 
     import ikdp
-    from ikdp_viz import planar_kind
     from ikdp_viz.app import VizApp
     from ikdp_viz.frame import build_frame
+    from ikdp_viz.planar_scene import grid_segments
     from ikdp_viz.screenshot import COUNT_FRAMES, open_viewer_page
+    from ikdp_viz.style import GRID_CELL, GRID_SECTION
 
     torch.set_num_threads(1)
     with contextlib.redirect_stdout(io.StringIO()):
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = VizApp(server, ikdp.load(config.ckpt), solve_now=False, animation_seconds=0.0, target=config.target)
     writer = app.writer
-    chosen = {"variant": "nothing written", "trail_states": planar_kind.PLAYING_TRAIL_STATES}
+    chosen = {"variant": "nothing written"}
     keep_drawing = server.scene.add_icosphere("/keep_drawing", radius=1e-3, position=(50.0, 50.0, 0.0))
     dense: dict = {}  # the 80-face joints and tips, hidden but for their variant
 
@@ -86,7 +93,8 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             still = writer.make_frame(state)
             frame = build_frame(writer.kind, writer.solved, state, writer.settings(), palettes=writer._palettes,
                                 animating_to=writer.solved.view.num_states - 1)  # fmt: skip
-            frame = dataclasses.replace(frame, trail_states=chosen["trail_states"])
+            settings = dataclasses.replace(frame.settings, show_trail=variant == "trail shown")
+            frame = dataclasses.replace(frame, settings=settings)
             writer.view.update(frame)
             if variant == "80-face spheres":
                 for name in ("joints", "tips"):
@@ -101,13 +109,14 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     def switch(variant: str) -> None:
         """On the writer's thread: from now on, draw `variant`."""
         chosen["variant"] = variant
-        chosen["trail_states"] = 4 if variant == "4 trail states" else planar_kind.PLAYING_TRAIL_STATES
         for node in dense.values():
             node.visible = variant == "80-face spheres"
         drawn = variant != "nothing drawn"
         arm = writer.view
-        for node in (*arm._static_nodes, arm.cross, arm.trail, arm.links, arm.joints, arm.tips):
+        for node in (*arm._static_nodes, arm.cross, arm.trail, arm.links, arm.followed_links, arm.joints, arm.tips):
             node.visible = drawn
+        half_grid.visible = variant == "half-length grid"
+        arm._static_nodes[0].visible = drawn and variant != "half-length grid"
 
     stop = threading.Event()
 
@@ -125,6 +134,14 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             app.panel.samples.value = config.samples
             app.move_target(config.target)
             assert app.wait_until_still(120), "the solve did not finish"
+            app.panel.show_trail.value = False  # as the tour's first step opens
+            view = writer.view
+            grid, sections = grid_segments(view.grid_half_width, view.unit / 2, view.unit, z=-0.02 * view.unit)
+            colors = np.broadcast_to(np.where(sections[:, None, None], GRID_SECTION, GRID_CELL), grid.shape)
+            half_grid = server.scene.add_line_segments(
+                "/half_length_grid", grid, colors=colors.astype(np.uint8), thickness=1.0, thickness_units="screen",
+                visible=False,
+            )  # fmt: skip
             sphere = trimesh.creation.icosphere(subdivisions=1, radius=writer.view.sizes.joint)
             for name in ("joints", "tips"):
                 node = getattr(writer.view, name)

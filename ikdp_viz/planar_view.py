@@ -33,7 +33,6 @@ from ikdp_viz.style import (
     ARM_PIXELS,
     BASE,
     ESTIMATE,
-    GRID_CELL,
     GRID_SECTION,
     LINE_PIXELS,
     REACH_RING,
@@ -306,10 +305,9 @@ class PlanarView:
 
 
 def grid_under(scene, name: str, half_width: float, unit: float, x: float = 0.0):
-    """The ground grid out to `half_width` about (x, 0): a line every half bone length, darker every bone length."""
-    # half-length cells: software WebGL pays for every pixel of line, and the quarter-length grid's
-    # 82 lines cost the page as much as the 16 arms (docs/viewer.md, "Frames in the page")
-    grid, sections = grid_segments(half_width, unit / 2, unit, z=-0.02 * unit)
-    colors = np.broadcast_to(np.where(sections[:, None, None], GRID_SECTION, GRID_CELL).astype(np.uint8), grid.shape)
-    return scene.add_line_segments(name, grid + np.array([x, 0.0, 0.0], dtype=grid.dtype), colors=colors.copy(),
+    """The ground grid out to `half_width` about (x, 0): a line every bone length."""
+    # software WebGL pays for every row a line crosses: lines every half bone length cost the default view 2.3 ms
+    # a frame more (of 35; benchmarks/viz_frame_costs.py), and the quarter-length grid's as much as the 16 arms
+    grid, _ = grid_segments(half_width, unit, unit, z=-0.02 * unit)
+    return scene.add_line_segments(name, grid + np.array([x, 0.0, 0.0], dtype=grid.dtype), colors=GRID_SECTION,
                                    thickness=1.0, thickness_units="screen")  # fmt: skip

@@ -8,8 +8,8 @@ from html import escape
 import numpy as np
 
 TARGET_RED = (220, 25, 25)
-GRID_CELL = (236, 236, 236)  # grid lines every half bone length (a robot: every cell)
-GRID_SECTION = (212, 212, 212)  # grid lines every mean bone length (a robot: every fifth cell)
+GRID_CELL = (236, 236, 236)  # a robot's grid lines every cell
+GRID_SECTION = (212, 212, 212)  # a planar arm's grid lines every mean bone length; a robot's every fifth cell
 ESTIMATE = (150, 80, 200)  # the denoiser's x̂0, ghosted
 PRIOR = (150, 100, 50)  # poses drawn from the training prior
 LINE_PIXELS = 1.5  # trail line thickness, screen pixels
