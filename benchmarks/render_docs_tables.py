@@ -328,8 +328,21 @@ def tree_self_collision(data: dict):
 
 
 def viz_frames(data: dict):
-    header = ["samples K", "frames/s while the denoising plays", "frames/s standing still"]
-    rows = [[str(r["samples"]), number(r["animating_fps"]), number(r["still_fps"])] for r in data["rows"]]
+    header = ["samples K", "frames/s while the denoising plays", "frames/s standing still", "states drawn a second"]
+    rows = [
+        [str(r["samples"]), number(r["animating_fps"]), number(r["still_fps"]), number(r["states_per_second"])]
+        for r in data["rows"]
+    ]
+    return header, rows
+
+
+def viz_frame_costs(data: dict):
+    """Each variant of the playing frame against the shipped one, interleaved in one page."""
+    header = ["variant", "ms a frame", "frames/s", "against as shipped, ms"]
+    rows = [
+        [r["variant"], number(r["ms_per_frame"]), number(r["frames_per_second"]), f"{r['ms_more_than_shipped']:+.1f}"]
+        for r in data["rows"]
+    ]
     return header, rows
 
 
@@ -491,6 +504,7 @@ TABLES = {
     "planar_goals": Table("solver.json", "python -m benchmarks.solver_benchmark", planar_goals),
     "chain_fk": Table("chain_fk.json", "python benchmarks/chain_fk.py", chain_fk),
     "viz_frames": Table("viz_frames.json", "python benchmarks/viz_frames.py", viz_frames),
+    "viz_frame_costs": Table("viz_frame_costs.json", "python benchmarks/viz_frame_costs.py", viz_frame_costs),
     "tree_seeds_pinocchio": Table(
         "tree_seeds_g1_shipped.json",
         "python -m benchmarks.tree_seeds --checkpoint checkpoints/ikdp_g1.pt --targets 500",

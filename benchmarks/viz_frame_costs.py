@@ -18,6 +18,7 @@ swings by 10 ms a frame here, so only medians over many rounds resolve a few ms.
   80-face spheres     the joints and tips as 80-face spheres, not the shipped 20 (an extra hidden node each, swapped in)
   nothing written     the last frame stands; only a tiny message keeps the page drawing
   nothing drawn       every node hidden, the same tiny message: what the page costs with nothing of ours to draw
+  bare WebGL canvas   not the viewer: a page of one canvas as large, cleared every frame, in the same browser
 
 Prints a table and writes JSON.
 """
@@ -27,10 +28,8 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import platform
 import random
 import statistics
-import sys
 import threading
 import time
 from dataclasses import asdict, dataclass
@@ -127,7 +126,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
             writer.run(lambda _, state=40 + step % 41: write(state), wait=False)
             time.sleep(0.05)
 
-    results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}
+    results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}  # and BARE's, last
     try:
         with sync_playwright() as playwright:
             browser, page = open_viewer_page(playwright, server, chromium=config.chromium, viewport=config.viewport)
@@ -163,6 +162,7 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
                     frames, elapsed = page.evaluate(COUNT_FRAMES, config.seconds)
                     results[variant].append(1000.0 * elapsed / frames)
                     print(f"{variant}: {results[variant][-1]:.1f} ms a frame", flush=True)
+            results[BARE] = bare_canvas_frames(page, config.seconds, config.rounds)
             browser.close()
     finally:
         stop.set()
@@ -170,6 +170,31 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
         with contextlib.redirect_stdout(io.StringIO()):
             server.stop()
     return results
+
+
+BARE = "bare WebGL canvas"
+BARE_PAGE = """<body style="margin:0"><canvas style="width:100vw;height:100vh;display:block"></canvas><script>
+const canvas = document.querySelector("canvas"); canvas.width = innerWidth; canvas.height = innerHeight;
+const gl = canvas.getContext("webgl2", {antialias: true, preserveDrawingBuffer: true});
+let frame = 0;
+const draw = () => {
+  frame += 1; gl.clearColor(frame % 2, 0.5, 0.5, 1); gl.clear(gl.COLOR_BUFFER_BIT); requestAnimationFrame(draw);
+};
+draw();
+</script></body>"""
+
+
+def bare_canvas_frames(page, seconds: float, rounds: int) -> list[float]:
+    """ms a frame of a page that only clears a WebGL canvas the viewer's size (the browser's own floor)."""
+    from ikdp_viz.screenshot import COUNT_FRAMES
+
+    page.set_content(BARE_PAGE)
+    page.evaluate(COUNT_FRAMES, 1.0)
+    times = []
+    for _ in range(rounds):
+        frames, elapsed = page.evaluate(COUNT_FRAMES, seconds)
+        times.append(1000.0 * elapsed / frames)
+    return times
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -189,11 +214,13 @@ def main(argv: list[str] | None = None) -> None:
     for row in rows:
         print(f"{row['variant']:<20} {row['ms_per_frame']:>10.1f} {row['frames_per_second']:>9.1f} "
               f"{row['ms_more_than_shipped']:>+11.1f}")  # fmt: skip
+    from ikdp.evaluation.machine import machine_description
+
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
     result = {
         "config": {key: str(value) if isinstance(value, Path) else value for key, value in asdict(config).items()},
         "rows": rows,
-        "machine": {"platform": platform.platform(), "python": sys.version.split()[0], "load_average": load},
+        "machine": {**machine_description(1), "load_average": load},
         "seconds": round(time.time() - started, 1),
     }
     config.output.parent.mkdir(parents=True, exist_ok=True)

@@ -306,8 +306,8 @@ class PlanarView:
 
 def grid_under(scene, name: str, half_width: float, unit: float, x: float = 0.0):
     """The ground grid out to `half_width` about (x, 0): a line every bone length."""
-    # software WebGL pays for every row a line crosses: lines every half bone length cost the default view 2.3 ms
-    # a frame more (of 35; benchmarks/viz_frame_costs.py), and the quarter-length grid's as much as the 16 arms
+    # software WebGL pays for every row a line crosses: lines every half bone length cost every frame more
+    # (benchmarks/viz_frame_costs.py, "half-length grid"), and the quarter-length grid's as much as the 16 arms
     grid, _ = grid_segments(half_width, unit, unit, z=-0.02 * unit)
     return scene.add_line_segments(name, grid + np.array([x, 0.0, 0.0], dtype=grid.dtype), colors=GRID_SECTION,
                                    thickness=1.0, thickness_units="screen")  # fmt: skip
