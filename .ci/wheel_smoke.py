@@ -55,6 +55,9 @@ def core() -> None:
     from ikdp.denoisers.film_compiled import load_kernel
 
     check(load_kernel() is not None, "the compiled FiLM step builds from the wheel's own C source")
+    from ikdp import compiled_chain
+
+    check(compiled_chain.load_kernel() is not None, "the compiled refinement builds from the wheel's own C source")
     wheel_version = importlib.metadata.version("ikdp")
     check(ikdp.__version__ == wheel_version, f"ikdp.__version__ {ikdp.__version__} is the wheel's version")
 
