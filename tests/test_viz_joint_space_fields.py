@@ -17,11 +17,9 @@ import ikdp
 from ikdp_viz import joint_space
 from ikdp_viz.joint_space import (
     FieldAsk,
-    clean_estimates,
-    grid_poses,
+    field_at,
     link_headings,
     model_timestep,
-    shortest_difference,
     solve_fields,
     torus_grid,
 )
@@ -42,11 +40,9 @@ def same(arrows, other) -> bool:
 
 
 def direct_arrows(solver, view, state: int, joints, highlight: int, count: int) -> np.ndarray:
-    """The field at `state` as one call for that state alone computes it (joint_space.field_at's way)."""
-    grid = torus_grid(count)
+    """The field at `state` as one call for that state alone computes it (joint_space.field_at)."""
     held = link_headings(view.joints[state])[highlight]
-    estimates = clean_estimates(solver, grid_poses(grid, joints, held), model_timestep(view.labels, state), view.target)
-    return shortest_difference(grid, estimates[:, list(joints)])
+    return field_at(solver, view.target, model_timestep(view.labels, state), joints, held, count).arrows
 
 
 def guard_the_network(monkeypatch, app) -> list[bool]:
