@@ -60,7 +60,7 @@ PLANAR_MODEL = "ikdp_n4"
 ROBOT_MODEL = "ikdp_panda"
 ACTIONS = 10  # per sequence: a few minutes for all seeds and both arms on two cores with software WebGL
 SEEDS = (1, 2)
-TIP_PIXELS = 4.0  # how far the drawn tip may sit from where the readout puts it
+TIP_PIXELS = 4.0  # beyond one marker radius, how far the orange patch may sit from the scene's tip
 LOCK_DEGREES = 3.0  # the drawn first link's angle against the locked value
 
 
@@ -301,12 +301,33 @@ def step_agrees(slider: int, read) -> list[str]:
     return []
 
 
-def cross_and_tip(image, box, camera, text: str, read, lengths, one_tip: bool) -> list[str]:
-    """The red cross on the Target text's point; the highlighted tip (its orange marker) at the readout's distance.
+# The tips of the arms the three.js scene holds, [x, y, z, scale] each: viser's batched spheres keep each instance's
+# matrix in a texture (translation at 12..14); an instance scaled to 0 is not drawn.
+TIPS_JS = """() => { const ref = window.__viserMutable.nodeRefFromName['/arm/tips']; let mesh = null;
+  (ref.current ?? ref).traverse((o) => { if (o.isInstancedMesh && mesh === null) mesh = o; });
+  const data = mesh.matricesTexture.image.data, out = [];
+  for (let i = 0; i < mesh.count; i++) {
+    const m = data.slice(16 * i, 16 * i + 16);
+    out.push([m[12], m[13], m[14], Math.hypot(m[0], m[1], m[2])]);
+  }
+  return out; }"""
 
-    The markers fade from near white (t = T) to orange (t = 0) as the legend's ramp says, by the square of the
-    step's share: from half way along the ramp they are seen on white, and must be; before, a marker found must
-    still be at the readout's distance. With every sample's trail shown all K tips are drawn: one of them must be.
+
+def scene_tips(page) -> np.ndarray:
+    """(M, 3) the tips the page's scene draws (instances scaled to 0 left out)."""
+    rows = np.asarray(page.evaluate(f"({TIPS_JS})()"), dtype=np.float64).reshape(-1, 4)
+    return rows[rows[:, 3] > 1e-6, :3]
+
+
+def cross_and_tip(image, box, camera, text: str, read, lengths, tips: np.ndarray, tip_radius: float) -> list[str]:
+    """The red cross on the Target text's point; the scene's highlighted tip at the readout's distance; its orange
+    marker drawn where the scene puts it.
+
+    The scene's tips are read from the page's three.js scene (`scene_tips`): one of them (all K are drawn with
+    every sample's trail shown) is the readout's distance from the target, to the readout's four decimals. The
+    marker, a lit sphere, fades from near white (t = T) to orange (t = 0) as the legend's ramp says, by the square of
+    the step's share: from half way along the ramp it is seen on white, and an orange patch must be on that tip. Its
+    shaded side is too dark for the orange mask, so the patch's centre may sit up to one marker radius off.
     """
     target = planar_target(text)
     centre, one = project(camera, box, [np.append(target, 0.0), np.append(target + [1.0, 0.0], 0.0)])
@@ -315,20 +336,27 @@ def cross_and_tip(image, box, camera, text: str, read, lengths, one_tip: bool) -
     u, v = np.rint(centre).astype(int)
     if not red_mask(image)[v - 2 : v + 3, u - 2 : u + 3].any():
         problems.append(f"no red cross at the Target text's ({target[0]:+.3f}, {target[1]:+.3f}), pixel ({u}, {v})")
-    expected = read.error_now * per_unit
-    x, y, width, height = (int(value) for value in box)
-    tips = blobs(orange_mask(image[y : y + height, x : x + width]))  # the canvas only: the panel has oranges too
-    distances = [float(np.linalg.norm(tip + [x, y] - centre)) for tip, _ in tips]
-    cover = 0.35 * float(np.mean(lengths)) * per_unit  # the cross and the gizmo's middle, drawn over the tips
-    if expected <= cover:  # a tip under them may peek out beside them
-        matched = not distances or min(distances) <= cover
-    else:
-        seen = (read.state / max(read.last, 1)) ** 2 >= 0.5
-        matched = any(abs(d - expected) <= TIP_PIXELS for d in distances) or not (seen or distances and one_tip)
-    if not matched:
+    distances = np.linalg.norm(tips[:, :2] - target, axis=-1)
+    if not len(tips) or np.min(np.abs(distances - read.error_now)) > 2e-4:
         problems.append(
-            f"the readout puts the highlighted tip {read.error_now:.4f} ({expected:.1f} px) from the target at step "
-            f"{read.state} of {read.last}; the drawn tips are {[round(d, 1) for d in distances]} px from it"
+            f"the readout puts the highlighted tip {read.error_now:.4f} from the target at step {read.state} of "
+            f"{read.last}; the scene's tips are {np.round(distances, 4).tolist()} from it"
+        )
+        return problems
+    tip = tips[int(np.argmin(np.abs(distances - read.error_now)))]
+    if (read.state / max(read.last, 1)) ** 2 < 0.5:
+        return problems  # still too faint to be told from the white
+    x, y, width, height = (int(value) for value in box)
+    patches = blobs(orange_mask(image[y : y + height, x : x + width]))  # the canvas only: the panel has oranges too
+    drawn_at = project(camera, box, [tip])[0]
+    offsets = [float(np.linalg.norm(patch + [x, y] - drawn_at)) for patch, _ in patches]
+    cover = 0.35 * float(np.mean(lengths)) * per_unit  # the cross and the gizmo's middle, drawn over the tips
+    cross_cover = float(np.linalg.norm(drawn_at - centre)) <= cover
+    if not cross_cover and not any(offset <= tip_radius * per_unit + TIP_PIXELS for offset in offsets):
+        problems.append(
+            f"no orange marker on the highlighted tip at step {read.state} of {read.last}, pixel "
+            f"({drawn_at[0]:.0f}, {drawn_at[1]:.0f}); the orange patches are {[round(o, 1) for o in offsets]} px "
+            "from it"
         )
     return problems
 
@@ -468,8 +496,8 @@ def invariants(ui: Page, robot: bool) -> tuple[list[str], np.ndarray]:
         problems += legend_agrees(canvas, legend(page), centre, 0.25 * box[3])
     else:
         lengths = link_lengths(text)
-        one_tip = any(entry.text.startswith("trail of the highlighted") for entry in legend(page))
-        problems += cross_and_tip(image, box, camera, text, read, lengths, one_tip)
+        tip_radius = ui.app.writer.view.sizes.tip
+        problems += cross_and_tip(image, box, camera, text, read, lengths, scene_tips(page), tip_radius)
         target = planar_target(text)
         centre, one = project(camera, box, [np.append(target, 0.0), np.append(target + [1.0, 0.0], 0.0)])
         radius = 1.1 * float(ui.app.gizmo.scale) * float(np.linalg.norm(one - centre))
@@ -537,11 +565,7 @@ def test_every_claim_on_the_page_holds_through_a_seeded_sequence(browser, model,
 # arms the scene holds (viser's batched spheres keep each instance's matrix in a texture, translation at 12..14).
 PLAYING_PROBE = """(seconds) => new Promise((done) => {
   const rows = [], start = performance.now();
-  const tips = () => { const ref = window.__viserMutable.nodeRefFromName['/arm/tips']; let mesh = null;
-    (ref.current ?? ref).traverse((o) => { if (o.isInstancedMesh && mesh === null) mesh = o; });
-    const data = mesh.matricesTexture.image.data, out = [];
-    for (let i = 0; i < mesh.count; i++) out.push([data[16 * i + 12], data[16 * i + 13]]);
-    return out; };
+  const tips = () => (""" + TIPS_JS + """)().map((tip) => tip.slice(0, 2));
   const tick = (now) => {
     const slider = document.querySelector('[role=slider]');
     const step = /Step (\\d+) of (\\d+) \\(t = (\\d+)\\)/.exec(document.body.innerText);

@@ -683,7 +683,7 @@ def test_a_new_tab_plays_the_denoising_once_its_page_has_drawn_a_frame(solver):
         return np.zeros((height, width, 3), np.uint8)
 
     tab = SimpleNamespace(_websock_connection=SimpleNamespace(queue_message=lambda message: None),
-                          get_render=get_render)  # fmt: skip
+                          get_render=get_render, camera=SimpleNamespace(on_update=lambda callback: None))  # fmt: skip
     with running_app(solver, animation_seconds=1.0, wait_for_tab=True) as app:
         assert app.wait_until_still(60) and app.state == 0 and not app.playing  # pure noise, waiting
         connecting = threading.Thread(target=app._on_connect, args=(tab,))
