@@ -565,7 +565,7 @@ def test_every_claim_on_the_page_holds_through_a_seeded_sequence(browser, model,
 # arms the scene holds (viser's batched spheres keep each instance's matrix in a texture, translation at 12..14).
 PLAYING_PROBE = """(seconds) => new Promise((done) => {
   const rows = [], start = performance.now();
-  const tips = () => (""" + TIPS_JS + """)().map((tip) => tip.slice(0, 2));
+  const tips = () => (__TIPS__)().map((tip) => tip.slice(0, 2));
   const tick = (now) => {
     const slider = document.querySelector('[role=slider]');
     const step = /Step (\\d+) of (\\d+) \\(t = (\\d+)\\)/.exec(document.body.innerText);
@@ -573,7 +573,7 @@ PLAYING_PROBE = """(seconds) => new Promise((done) => {
     if (now - start < seconds * 1000) requestAnimationFrame(tick); else done(rows);
   };
   requestAnimationFrame(tick);
-})"""
+})""".replace("__TIPS__", TIPS_JS)
 
 
 def drawn_t(view, tips) -> int:
