@@ -4,8 +4,9 @@
 
 benchmarks/viz_frames.py counts the frames of whole animations, one setting per run, and
 this shared 2-core machine moves those counts by a fifth from one run to the next. Here one
-page stays open, and the server writes a state of the K = 16 denoising 20 times a second,
-as an animation does (states 40 to 80 in a loop, the frame a playing animation draws), while
+page stays open, its canvas at a device pixel ratio of 1 throughout (viser's `fixedDpr`), and
+the server writes a state of the K = 16 denoising 20 times a second, as an animation does
+(states 40 to 80 in a loop, the frame a playing animation draws), while
 the variants below take turns in a new order each round, `--rounds` times: one 3 s count
 swings by 10 ms a frame here, so only medians over many rounds resolve a few ms.
 
@@ -129,7 +130,9 @@ def measure(config: CostsConfig) -> dict[str, list[float]]:
     results: dict[str, list[float]] = {variant: [] for variant in VARIANTS}  # and BARE's, last
     try:
         with sync_playwright() as playwright:
-            browser, page = open_viewer_page(playwright, server, chromium=config.chromium, viewport=config.viewport)
+            # the resolution pinned: viser lowers it after slow frames, and the variants would inherit each other's
+            browser, page = open_viewer_page(playwright, server, chromium=config.chromium, viewport=config.viewport,
+                                             pixel_ratio=1.0)  # fmt: skip
             app.panel.samples.value = config.samples
             app.move_target(config.target)
             assert app.wait_until_still(120), "the solve did not finish"

@@ -82,11 +82,15 @@ def read_stamp(path: Path) -> dict | None:
     return None if text is None else json.loads(text)
 
 
-def open_viewer_page(playwright, server, *, chromium: str, viewport: tuple[int, int]):
-    """Debian's chromium (software WebGL) on the viewer that `server` serves, once connected: (browser, page)."""
+def open_viewer_page(playwright, server, *, chromium: str, viewport: tuple[int, int], pixel_ratio: float | None = None):
+    """Debian's chromium (software WebGL) on the viewer that `server` serves, once connected: (browser, page).
+
+    `pixel_ratio` pins the canvas's resolution (viser's `fixedDpr`); None leaves viser to lower it after slow frames,
+    as a user's page does."""
     browser = playwright.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
     page = browser.new_page(viewport={"width": viewport[0], "height": viewport[1]})
-    page.goto(f"http://127.0.0.1:{server.get_port()}")
+    query = "" if pixel_ratio is None else f"/?fixedDpr={pixel_ratio:g}"
+    page.goto(f"http://127.0.0.1:{server.get_port()}{query}")
     page.get_by_text("Connected", exact=True).wait_for(timeout=120_000)
     return browser, page
 
