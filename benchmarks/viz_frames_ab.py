@@ -2,11 +2,11 @@ r"""Frames per second of K = 16 animating in software WebGL, two code trees alte
 server's messages and bytes per state drawn (which do not depend on the CPU).
 
     OMP_NUM_THREADS=1 python benchmarks/viz_frames_ab.py --base /tmp/base --rounds 3
-    # /tmp/base: the tree to compare with, e.g. `git worktree add /tmp/base 910caa6`
+    # /tmp/base: the tree to compare with, e.g. `git worktree add /tmp/base HEAD~1`
 
-Views: "before" (the base tree's default, every sample's trail), "default" (this tree's
-default: the highlighted sample's trail, the others light) and "full trail" (this tree with
-'trail of: all samples'). Each round runs every view once, in a new process with that tree on
+Views: "before" (the base tree's app as a script opens it), "default" (this tree's, the same way)
+and "full trail" (this tree with 'trail of: all samples'); `--views before default` for a plain
+A/B. Each round runs every view once, in a new process with that tree on
 PYTHONPATH (`--child`), in turn: the shipped ikdp_n4, target (-0.010, 1.200), K = 16, seed 0,
 DDPM, a 4 s animation played `repeats` times in Debian's chromium (flags in
 ikdp_viz/screenshot.py, 1280 x 800). The page counts its requestAnimationFrame callbacks while
