@@ -253,3 +253,16 @@ def test_opening_a_longer_arm_fits_the_open_tabs_view_to_its_reach(viewer, tiny_
     finally:
         assert app.load_checkpoint(tiny_checkpoint)
         settle(app)
+
+
+def test_the_timestep_slider_and_its_number_box_are_drawn_on_layers_of_their_own(viewer):
+    """The panel's style puts them on compositing layers (docs/viewer.md, "Frames in the page"): the page then
+    re-rasters two small layers, not the panel around them, with each state a played denoising draws. A viser that
+    renamed its slider's classes would lose that without a word; this says so."""
+    changes = viewer.page.evaluate(
+        """() => { const slider = document.querySelector('[role=slider]');
+          const row = slider.closest('.mantine-Slider-root'), box = row && row.parentElement.querySelector(
+            '.mantine-NumberInput-root');
+          return [row && getComputedStyle(row).willChange, box && getComputedStyle(box).willChange]; }"""
+    )
+    assert changes == ["transform", "transform"], changes
