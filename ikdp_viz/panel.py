@@ -267,7 +267,7 @@ def build_clock(gui: viser.GuiApi) -> tuple[viser.GuiDropdownHandle, viser.GuiMa
 
 # The timestep slider and its number box move with every state a played denoising draws. Each on a compositing layer
 # of its own, the browser re-rasters those two small layers, not the panel's tile around them: with software WebGL
-# (no GPU) the playing page drew 10 % more frames a second (docs/viewer.md).
+# (no GPU) the playing page drew about 8 % more frames a second (docs/viewer.md).
 PAGE_STYLE = "<style>.mantine-Slider-root, .mantine-NumberInput-root { will-change: transform; }</style>"
 
 
