@@ -337,13 +337,14 @@ def cross_and_tip(image, box, camera, text: str, read, lengths, tips: np.ndarray
     if not red_mask(image)[v - 2 : v + 3, u - 2 : u + 3].any():
         problems.append(f"no red cross at the Target text's ({target[0]:+.3f}, {target[1]:+.3f}), pixel ({u}, {v})")
     distances = np.linalg.norm(tips[:, :2] - target, axis=-1)
-    if not len(tips) or np.min(np.abs(distances - read.error_now)) > 2e-4:
+    gaps = np.abs(distances - read.error_now)
+    if not len(tips) or np.min(gaps) > 2e-4:
         problems.append(
             f"the readout puts the highlighted tip {read.error_now:.4f} from the target at step {read.state} of "
             f"{read.last}; the scene's tips are {np.round(distances, 4).tolist()} from it"
         )
         return problems
-    tip = tips[int(np.argmin(np.abs(distances - read.error_now)))]
+    tip = tips[int(np.argmin(gaps))]
     if (read.state / max(read.last, 1)) ** 2 < 0.5:
         return problems  # still too faint to be told from the white
     x, y, width, height = (int(value) for value in box)
